@@ -1,0 +1,55 @@
+// Pinhole camera with optional lens distortion: pixels <-> unit bearing vectors.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace visual_gyro {
+
+/// Lens distortion models (names as in sensor_msgs/CameraInfo).
+enum class DistortionModel {
+  kNone,         ///< pinhole, no distortion
+  kPlumbBob,     ///< "plumb_bob" / radial-tangential: k1, k2, p1, p2[, k3]
+  kEquidistant,  ///< "equidistant" (fisheye, Kannala-Brandt): k1, k2, k3, k4
+};
+
+/// Parses "plumb_bob", "rational_polynomial" is not supported, "radtan" (EuRoC), "equidistant",
+/// "" or "none"; returns false for an unknown name.
+bool parseDistortionModel(const std::string& name, DistortionModel* model);
+
+/// Camera intrinsics. Pixel coordinates: origin at the centre of the top-left pixel, u right, v down.
+class CameraModel {
+ public:
+  CameraModel() = default;
+  /// fx, fy, cx, cy in pixels; `distortion` coefficients in the model's order.
+  CameraModel(double fx, double fy, double cx, double cy, int width, int height,
+              DistortionModel model = DistortionModel::kNone,
+              const std::vector<double>& distortion = {});
+
+  /// "" when usable, else why not (non-finite or non-positive focal lengths, wrong number of
+  /// distortion coefficients, non-finite values, non-positive image size).
+  std::string validate() const;
+
+  /// Unit bearing b = normalize(K^-1 [u v 1]) after removing distortion (iterative). Optical frame.
+  Eigen::Vector3d bearing(double u, double v) const;
+  /// Pixel of a bearing (z > 0), with distortion applied. Inverse of bearing().
+  Eigen::Vector2d project(const Eigen::Vector3d& bearing) const;
+
+  double fx() const { return fx_; }
+  double fy() const { return fy_; }
+  double cx() const { return cx_; }
+  double cy() const { return cy_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  DistortionModel distortionModel() const { return model_; }
+  const std::vector<double>& distortion() const { return distortion_; }
+
+ private:
+  double fx_ = 0, fy_ = 0, cx_ = 0, cy_ = 0;
+  int width_ = 0, height_ = 0;
+  DistortionModel model_ = DistortionModel::kNone;
+  std::vector<double> distortion_;
+};
+
+}  // namespace visual_gyro

@@ -1,0 +1,46 @@
+// Synthetic sequence renderer: textured planes at several depths seen along a known trajectory.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+namespace visual_gyro {
+
+/// What to render.
+struct RenderSettings {
+  /// "drive" (car-like forward motion with left and right turns), "handheld" (rotation only with
+  /// small jitter), "forward" (straight forward drive, no rotation to speak of).
+  std::string preset = "drive";
+  int frames = 60;
+  int width = 640;
+  int height = 480;
+  double fx = 500.0, fy = 500.0, cx = 319.5, cy = 239.5;
+  double rate_hz = 10.0;       ///< frame rate: stamps are k / rate_hz [s]
+  double noise_sigma = 2.0;    ///< Gaussian pixel noise (grey levels)
+  uint64_t seed = 7;           ///< texture and noise seed
+};
+
+/// Rendered sequence in memory.
+struct RenderedSequence {
+  std::vector<cv::Mat> images;               ///< CV_8UC1
+  std::vector<Eigen::Matrix3d> orientations;  ///< camera -> world (first camera) per frame
+  std::vector<Eigen::Vector3d> positions;     ///< [m]
+  std::vector<double> stamps;                 ///< [s]
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+};
+
+/// Renders the preset. Throws std::invalid_argument for an unknown preset or bad sizes.
+RenderedSequence renderSequence(const RenderSettings& settings);
+
+/// Renders one view of the preset's scene at an arbitrary pose (camera -> world).
+cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orientation,
+                   const Eigen::Vector3d& position);
+
+/// Writes the KITTI odometry layout: image_l/000000.png ..., calib.txt, poses.txt, times.txt.
+/// Throws std::runtime_error when the folder cannot be written.
+void writeKittiLayout(const RenderedSequence& sequence, const std::string& folder);
+
+}  // namespace visual_gyro

@@ -1,0 +1,146 @@
+// Frame-to-frame rotation from matched bearing vectors.
+//
+// Convention (see hypothesis_math.h): R maps bearings of the current frame k into the previous
+// frame k-1, b_prev ~ R b_cur; R = R_{k-1}^T R_k for camera poses R_k. Its rotation vector divided
+// by the frame interval is the camera's angular velocity in the camera frame (what a gyro fixed to
+// the camera measures). Angles in radians unless a name says _deg; times in milliseconds.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace visual_gyro {
+
+class HypothesisVoter;
+
+/// Settings of the rotation estimator. Degrees in the settings, radians in the results.
+struct EstimatorSettings {
+  /// "vote" (default: 3-D voting, verification, refinement) or "paper" (faithful yaw voting).
+  std::string method = "vote";
+  /// "auto" (CUDA when a device works, else CPU), "cpu" or "cuda".
+  std::string backend = "auto";
+  int hypotheses = 2000;  ///< triples drawn per frame
+  uint64_t seed = 1;      ///< Philox seed; frame f uses seed + f, so runs are reproducible
+
+  // --- degeneracy tests (both methods) ---
+  double min_separation_deg = 0.3;     ///< bearings of a triple closer than this are "repeated"
+  double min_triangle_area_deg2 = 0.5;  ///< smaller triangles of a triple are "collinear" [deg^2]
+
+  // --- paper method ---
+  bool centroid_subtraction = true;  ///< subtract centroids before Arun's SVD (paper: yes)
+  double yaw_bin_deg = 0.1;          ///< yaw histogram bin width
+  double yaw_window_deg = 15.0;      ///< yaw histogram covers [-window, +window)
+
+  // --- vote method ---
+  double rotation_bin_deg = 0.5;      ///< cell width of the 3-D rotation-vector histogram
+  double rotation_window_deg = 6.0;   ///< half width of the histogram around the prior
+  double wide_window_deg = 30.0;      ///< half width of the fallback histogram (prior failed)
+  double max_angle_change_deg = 0.5;  ///< triples whose pairwise angles change more are voted out
+  int candidates = 3;                 ///< fullest cells verified against all matches
+  double inlier_threshold_deg = 0.1;  ///< epipolar / rotation residual of an inlier
+  bool use_prior = true;              ///< centre the vote window on the previous rotation
+  int refine_iterations = 10;         ///< Gauss-Newton iterations of the refinement
+
+  // --- validity ---
+  int min_matches = 8;             ///< fewer matches: invalid result
+  int min_votes = 5;               ///< winning cell with fewer votes: invalid
+  double min_inlier_ratio = 0.15;  ///< vote method: fewer inliers: invalid
+  double min_covariance_rad2 = 1e-8;  ///< floor of each rotation covariance diagonal entry
+};
+
+/// Checks settings; returns "" when usable, else a message naming the bad setting.
+std::string validateSettings(const EstimatorSettings& settings);
+
+/// Wall-clock time of each stage of a frame [ms].
+struct StageTimes {
+  double detect = 0.0;
+  double describe = 0.0;
+  double match = 0.0;
+  double estimate = 0.0;
+  double total = 0.0;
+};
+
+/// Result of one rotation estimate.
+struct RotationResult {
+  bool valid = false;  ///< false: not trustworthy (see error); the rotation is then identity
+  std::string error;   ///< why not valid ("" when valid)
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();        ///< b_prev ~ R b_cur
+  Eigen::Quaterniond quaternion = Eigen::Quaterniond::Identity();  ///< same rotation (w, x, y, z)
+  Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();     ///< axis * angle [rad]
+  double yaw = 0.0;    ///< about camera +y (down) [rad]; R = Ry(yaw) Rx(pitch) Rz(roll)
+  double pitch = 0.0;  ///< about camera +x (right) [rad]
+  double roll = 0.0;   ///< about camera +z (forward) [rad]
+  /// Covariance of the rotation vector [rad^2], camera frame.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int matches_used = 0;          ///< matches given to the estimator
+  int hypotheses_drawn = 0;      ///< triples drawn
+  int hypotheses_accepted = 0;   ///< triples that voted (non-degenerate, inside the window)
+  int winning_votes = 0;         ///< votes of the winning cell
+  int inliers = 0;               ///< matches consistent with the result (vote method; paper: 0)
+  bool pure_rotation = false;    ///< vote method: the matches are explained by rotation alone
+  std::string backend;           ///< backend that voted: "cpu" or "cuda"
+  StageTimes times;              ///< estimate (and, from VisualGyro, front-end) times
+};
+
+/// Optional prior for one estimate: the previous frame's rotation, scaled to this interval.
+struct RotationPrior {
+  bool valid = false;
+  Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();  ///< [rad]
+};
+
+/// Estimates the frame-to-frame rotation from matched unit bearings. Not thread-safe; one per
+/// stream of frames. Never throws on bad input: it returns an invalid result naming the problem.
+class RotationEstimator {
+ public:
+  /// Uses `voter` for the hypotheses; see createRotationEstimator for the usual way to make one.
+  RotationEstimator(const EstimatorSettings& settings, std::unique_ptr<HypothesisVoter> voter);
+  ~RotationEstimator();
+
+  /// previous[i] (frame k-1) and current[i] (frame k) are one match, unit vectors.
+  RotationResult estimate(const std::vector<Eigen::Vector3d>& previous,
+                          const std::vector<Eigen::Vector3d>& current,
+                          const RotationPrior& prior = RotationPrior());
+
+  /// Changes settings (e.g. from dynamic_reconfigure); the backend stays.
+  void setSettings(const EstimatorSettings& settings);
+  const EstimatorSettings& settings() const { return settings_; }
+  /// "cpu" or "cuda".
+  std::string backendName() const;
+  /// Frames estimated so far (frame f draws with seed + f).
+  uint64_t frameCount() const { return frame_count_; }
+
+ private:
+  RotationResult estimatePaper(const std::vector<Eigen::Vector3d>& previous,
+                               const std::vector<Eigen::Vector3d>& current);
+  RotationResult estimateVote(const std::vector<Eigen::Vector3d>& previous,
+                              const std::vector<Eigen::Vector3d>& current, const RotationPrior& prior);
+
+  EstimatorSettings settings_;
+  std::unique_ptr<HypothesisVoter> voter_;
+  uint64_t frame_count_ = 0;
+};
+
+/// Receives the factory's one warning (e.g. "CUDA unavailable: ...; using the CPU").
+using WarningSink = std::function<void(const std::string&)>;
+
+/// Picks the backend named by settings.backend: "cpu", "cuda" (falls back to the CPU with one
+/// warning when no device works), or "auto" (CUDA when available, silently CPU otherwise).
+/// Throws std::invalid_argument for an unknown backend name.
+std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettings& settings,
+                                                           const WarningSink& warn = WarningSink());
+
+/// True when this build has the CUDA backend compiled in.
+bool cudaBackendCompiled();
+
+/// Yaw, pitch, roll of R = Ry(yaw) Rx(pitch) Rz(roll) [rad] (camera axes x right, y down, z fwd).
+Eigen::Vector3d yawPitchRoll(const Eigen::Matrix3d& rotation);
+
+/// Angle of the rotation R_a^T R_b [rad].
+double rotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
+
+}  // namespace visual_gyro

@@ -1,0 +1,79 @@
+// The visual gyroscope pipeline: gray image in, frame-to-frame rotation and angular velocity out.
+// ROS-free; the nodelet (src/ros/) and the evaluation command both drive it.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "visual_gyro/camera_model.h"
+#include "visual_gyro/feature_front_end.h"
+#include "visual_gyro/rotation_estimator.h"
+
+namespace visual_gyro {
+
+/// What the pipeline produced for one image.
+struct FrameResult {
+  /// False for the first frame, after a reset, or for a frame that was rejected (see error).
+  bool has_estimate = false;
+  /// Why the frame gave no (valid) estimate; "" otherwise.
+  std::string error;
+  RotationResult rotation;          ///< frame-to-frame rotation (previous -> this frame)
+  double dt = 0.0;                  ///< this stamp - previous stamp [s]
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< rotation vector / dt [rad/s]
+  /// Covariance of angular_velocity [(rad/s)^2] = rotation covariance / dt^2.
+  Eigen::Matrix3d angular_velocity_covariance = Eigen::Matrix3d::Identity();
+  int features = 0;                 ///< keypoints described in this frame
+  /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
+  std::vector<cv::Point2f> previous_pixels, current_pixels;
+  std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
+};
+
+/// Settings of the whole pipeline.
+struct VisualGyroSettings {
+  FrontEndSettings front_end;
+  EstimatorSettings estimator;
+};
+
+/// Runs detection, description, matching and rotation estimation frame to frame.
+/// Not thread-safe (one instance per image stream).
+class VisualGyro {
+ public:
+  /// Throws std::invalid_argument when the camera or settings are unusable (message says why).
+  VisualGyro(const CameraModel& camera, const VisualGyroSettings& settings,
+             const WarningSink& warn = WarningSink());
+
+  /// Processes the next image (CV_8UC1; stamp in seconds). Never throws for bad images: returns a
+  /// FrameResult with has_estimate = false and error set. A stamp not after the previous one is
+  /// rejected without touching the state.
+  FrameResult processFrame(const cv::Mat& gray, double stamp);
+
+  /// Forgets the previous frame (after a time jump or a camera change).
+  void reset();
+  /// Changes intrinsics (camera_info changed); resets. Throws std::invalid_argument when unusable.
+  void setCamera(const CameraModel& camera);
+  /// Changes settings live; the backend stays.
+  void setSettings(const VisualGyroSettings& settings);
+
+  const CameraModel& camera() const { return camera_; }
+  const VisualGyroSettings& settings() const { return settings_; }
+  /// "cpu" or "cuda".
+  std::string backendName() const { return estimator_->backendName(); }
+
+ private:
+  CameraModel camera_;
+  VisualGyroSettings settings_;
+  FeatureFrontEnd front_end_;
+  std::unique_ptr<RotationEstimator> estimator_;
+  bool has_previous_ = false;
+  double previous_stamp_ = 0.0;
+  FrameFeatures previous_features_;
+  std::vector<Eigen::Vector3d> previous_keypoint_bearings_;
+  RotationPrior prior_;
+  double prior_dt_ = 0.0;
+};
+
+}  // namespace visual_gyro

@@ -1,0 +1,17 @@
+// Helpers shared by the unit tests.
+#pragma once
+
+#include <string>
+
+namespace visual_gyro {
+namespace test {
+
+/// Folder of the shared real sequences: $VISUAL_GYRO_DATA, else ../shared/data beside the repo.
+std::string sharedDataDir();
+/// Path of a shared sequence, or "" (with the reason in *why) when it is absent.
+std::string sharedSequence(const std::string& name, std::string* why);
+/// A fresh temporary folder for one test.
+std::string makeTempDir(const std::string& tag);
+
+}  // namespace test
+}  // namespace visual_gyro
