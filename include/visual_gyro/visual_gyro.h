@@ -36,6 +36,9 @@ struct FrameResult {
 struct VisualGyroSettings {
   FrontEndSettings front_end;
   EstimatorSettings estimator;
+  /// false: front end only; FrameResult then holds the matches but no rotation (used to run
+  /// baseline estimators on exactly the same matches).
+  bool run_estimator = true;
 };
 
 /// Runs detection, description, matching and rotation estimation frame to frame.
