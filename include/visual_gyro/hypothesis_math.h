@@ -270,12 +270,15 @@ VG_HD int32_t axisBin(float value, float centre, const VoteGrid& g) {
   return static_cast<int32_t>(pos);
 }
 
-/// Histogram cell of rotation R, or -1 when outside the window.
+/// Histogram cell of rotation R, or -1 when outside the window. *voted receives (yaw, pitch, roll)
+/// for a yaw grid, the rotation vector for a rotation-vector grid.
 /// Rotation-vector cells are indexed (ix * bins + iy) * bins + iz.
 VG_HD int32_t cellOf(const Mat3f& R, const VoteGrid& g, Vec3f* voted) {
   if (g.kind == kVoteYaw) {
+    // Pitch and roll ride along (not voted) so that a winning yaw bin still yields a 3-D rotation.
     const float yaw = yawOf(R);
-    *voted = make3(yaw, 0.f, 0.f);
+    const float sin_pitch = fminf(1.f, fmaxf(-1.f, -R.m[5]));
+    *voted = make3(yaw, asinf(sin_pitch), atan2f(R.m[3], R.m[4]));
     return axisBin(yaw, g.centre[0], g);
   }
   const Vec3f r = rotationVectorOf(R);
@@ -295,7 +298,7 @@ VG_HD float binCentre(int32_t bin, float centre, const VoteGrid& g) {
 /// What one hypothesis produced; kept for the bin-for-bin CPU/GPU comparison and for reading the
 /// estimate from the hypotheses of the winning cell.
 struct HypothesisRecord {
-  float value[3];  ///< the voted quantity: yaw in value[0], or the rotation vector [rad]
+  float value[3];  ///< yaw grid: (yaw, pitch, roll); rotation grid: the rotation vector [rad]
   int32_t cell;    ///< histogram cell, -1 when rejected or outside the window
 };
 

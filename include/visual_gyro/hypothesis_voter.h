@@ -27,7 +27,7 @@ struct VoteRequest {
 /// What a backend returns for a VoteRequest.
 struct VoteResult {
   std::vector<int32_t> histogram;             ///< votes per cell (hyp::cellCount(grid) cells)
-  std::vector<float> cell_sums;               ///< per cell, sum of the voted values (3 floats)
+  std::vector<float> cell_sums;               ///< per cell, sums of HypothesisRecord::value (3 each)
   std::vector<hyp::HypothesisRecord> records;  ///< per hypothesis, when keep_records
   int32_t winner = -1;                        ///< fullest cell (lowest index on ties), -1 if none
   uint32_t accepted = 0;                      ///< hypotheses that voted (inside the window)
