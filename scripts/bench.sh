@@ -1,0 +1,111 @@
+#!/usr/bin/env bash
+# `make bench`: accuracy and estimation time of every method on every shared sequence present and
+# on rendered sequences (growing outlier ratio, growing translation), the estimators' time over
+# hypotheses and matches, then a Markdown table, a CSV and PNG plots in out/bench/.
+# Kept to roughly ten minutes on two cores (frame counts below).
+set -euo pipefail
+source "$(dirname "$0")/env.sh"
+
+OUT="${BENCH_OUT:-${REPO_DIR}/out/bench}"
+BACKEND="${BENCH_BACKEND:-auto}"
+RENDER_FRAMES="${BENCH_RENDER_FRAMES:-40}"
+SWEEP_FRAMES="${BENCH_SWEEP_FRAMES:-12}"
+EVAL="${BIN}/evaluate"
+RENDER="${BIN}/render_sequence"
+PY=/usr/bin/python3
+
+for tool in "${EVAL}" "${RENDER}"; do
+  if [[ ! -x ${tool} ]]; then
+    echo "[bench] ${tool} not built (run make build)" >&2
+    exit 1
+  fi
+done
+if ! "${PY}" -c 'import matplotlib, numpy' 2>/dev/null; then
+  echo "[bench] ${PY} lacks matplotlib/numpy (Debian: python3-matplotlib python3-numpy; make deps installs them)" >&2
+  exit 1
+fi
+
+METHODS="$("${EVAL}" --list-methods)"
+mkdir -p "${OUT}/logs" "${OUT}/rendered"
+RESULTS="${OUT}/results.jsonl"
+: >"${RESULTS}"
+rm -f "${OUT}"/sweep_*.csv
+start_all=${SECONDS}
+echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
+
+# run_eval <group> <label> <x> <folder> [evaluate options...]: appends the JSON lines, tagged with
+# the benchmark group (shared, rendered, outliers, translation), a label and an x value.
+run_eval() {
+  local group=$1 label=$2 x=$3 folder=$4
+  shift 4
+  local log="${OUT}/logs/${group}_${label}.log"
+  local t0=${SECONDS}
+  if ! "${EVAL}" "${folder}" --method "${METHODS}" --backend "${BACKEND}" --quiet "$@" >"${log}" 2>&1; then
+    echo "[bench] evaluate failed on ${folder} ($*); see ${log}" >&2
+    tail -3 "${log}" >&2
+    return 0
+  fi
+  grep '^{' "${log}" | "${PY}" -c '
+import json, sys
+group, label, x = sys.argv[1:4]
+for line in sys.stdin:
+    rec = json.loads(line)
+    rec.update(group=group, label=label, x=float(x))
+    print(json.dumps(rec))
+' "${group}" "${label}" "${x}" >>"${RESULTS}"
+  echo "[bench] ${group}/${label}: $(grep -c '^{' "${log}") methods in $((SECONDS - t0)) s"
+}
+
+# 1. Shared real sequences.
+for name in kitti_turn kitti_straight euroc_v101_static; do
+  if [[ -d ${DATA_DIR}/${name} ]]; then
+    run_eval shared "${name}" 0 "${DATA_DIR}/${name}"
+  else
+    echo "[bench] skipping ${name}: ${DATA_DIR}/${name} not present"
+  fi
+done
+
+# 2. Rendered sequences (KITTI layout written by render_sequence).
+for preset in drive forward handheld; do
+  dir="${OUT}/rendered/${preset}"
+  if [[ ! -f ${dir}/poses.txt ]]; then
+    "${RENDER}" --preset "${preset}" --frames "${RENDER_FRAMES}" --output "${dir}" >"${OUT}/logs/render_${preset}.log" 2>&1 ||
+      { echo "[bench] render_sequence ${preset} failed; see ${OUT}/logs/render_${preset}.log" >&2; continue; }
+  fi
+  run_eval rendered "${preset}" 0 "${dir}"
+done
+
+# 3. Growing outlier ratio on the rendered drive (wrong pairings injected before any method runs).
+if [[ -f ${OUT}/rendered/drive/poses.txt ]]; then
+  for f in 0.2 0.4 0.5 0.6 0.7; do
+    run_eval outliers "drive_out${f}" "${f}" "${OUT}/rendered/drive" --outliers "${f}"
+  done
+fi
+
+# 4. Growing translation: the rendered forward drive with a growing frame stride (more metres and
+#    more parallax per pair).
+if [[ -f ${OUT}/rendered/forward/poses.txt ]]; then
+  for s in 2 3 4; do
+    run_eval translation "forward_stride${s}" "${s}" "${OUT}/rendered/forward" --stride "${s}"
+  done
+fi
+
+# 5. CPU timing of every estimator over hypotheses and matches, on the same real matches.
+sweep_seq="${DATA_DIR}/kitti_turn"
+[[ -d ${sweep_seq} ]] || sweep_seq="${OUT}/rendered/drive"
+if [[ -d ${sweep_seq} ]]; then
+  t0=${SECONDS}
+  "${EVAL}" "${sweep_seq}" --method "${METHODS}" --backend cpu --quiet --frames "${SWEEP_FRAMES}" \
+    --timing-sweep "${OUT}/sweep_cpu.csv" >"${OUT}/logs/sweep_cpu.log" 2>&1 ||
+    echo "[bench] timing sweep failed; see ${OUT}/logs/sweep_cpu.log" >&2
+  echo "[bench] CPU timing sweep on $(basename "${sweep_seq}") in $((SECONDS - t0)) s"
+fi
+
+# 6. Table, CSV and plots (out/gpu/*.csv from the GPU stand-alone bench joins the timing plots).
+machine="$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -1), $(nproc) cores"
+"${PY}" "${REPO_DIR}/scripts/bench_plot.py" --results "${RESULTS}" --out "${OUT}" \
+  --sweep "${OUT}/sweep_cpu.csv" --gpu-dir "${REPO_DIR}/out/gpu" --machine "${machine}"
+echo
+cat "${OUT}/table.md"
+echo
+echo "[bench] machine: ${machine}; total $((SECONDS - start_all)) s; files in ${OUT}"

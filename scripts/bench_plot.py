@@ -1,0 +1,349 @@
+#!/usr/bin/python3
+"""Turns the benchmark's JSON lines (one per method and run of `evaluate`) into out/bench/
+results.csv, table.md and PNG plots. Run by scripts/bench.sh with Debian's python3
+(python3-matplotlib, python3-numpy).
+
+Inputs:
+  --results  results.jsonl: evaluate's JSON objects plus group (shared, rendered, outliers,
+             translation), label and x (outlier fraction or frame stride) added by bench.sh
+  --sweep    CSV of `evaluate --timing-sweep` (method, backend, hypotheses, matches, ms_mean, ...)
+  --gpu-dir  folder of CSVs from the GPU stand-alone bench; any with a `hypotheses` column and a
+             time column (ms_mean, ms, time_ms or kernel_ms) joins the timing plots
+"""
+import argparse
+import csv
+import glob
+import json
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+METHOD_ORDER = ["vote", "paper", "essential5", "fundamental8", "opengv_rotation_only",
+                "opengv_eigensolver", "opengv_5pt"]
+CSV_FIELDS = ["group", "label", "x", "dataset", "method", "backend", "frames", "invalid",
+              "rot_rmse_deg", "rot_max_deg", "yaw_rmse_deg", "yaw_max_deg", "mean_rate_dps",
+              "rate_rmse_dps", "ms_detect", "ms_describe", "ms_match", "ms_estimate", "ms_total",
+              "matches_mean", "outliers", "stride", "true_rot_mean_deg", "true_trans_mean_m"]
+
+
+def method_key(m):
+    return (METHOD_ORDER.index(m) if m in METHOD_ORDER else len(METHOD_ORDER), m)
+
+
+def num(v):
+    return float("nan") if v is None else float(v)
+
+
+def fmt(v, digits=3):
+    v = num(v)
+    return "n/a" if math.isnan(v) else f"{v:.{digits}f}"
+
+
+def load_results(path):
+    rows = []
+    with open(path) as f:
+        for line in f:
+            line = line.strip()
+            if not line:
+                continue
+            r = json.loads(line)
+            ms = r.get("ms_per_frame") or {}
+            for k in ("detect", "describe", "match", "estimate", "total"):
+                r["ms_" + k] = ms.get(k)
+            rows.append(r)
+    return rows
+
+
+def write_csv(rows, path):
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in CSV_FIELDS})
+
+
+def runs_of(rows):
+    """Runs (group, label) in first-seen order, each with {method: row}."""
+    runs = {}
+    for r in rows:
+        runs.setdefault((r["group"], r["label"]), {})[r["method"]] = r
+    return runs
+
+
+def write_table(rows, methods, path, machine, sweep_rows):
+    runs = runs_of(rows)
+    out = []
+    out.append("# visual_gyro benchmark\n")
+    out.append(f"Machine: {machine}. Same matches for every method within a row; invalid estimates "
+               "count as identity rotation. Rotation error = angle of R_est^-1 R_true per frame "
+               "pair; yaw about the camera's vertical axis.\n")
+    out.append("## Rotation error RMSE / max per frame pair [deg]\n")
+    out.append("| sequence | " + " | ".join(methods) + " |")
+    out.append("|---" * (len(methods) + 1) + "|")
+    for (group, label), by_method in runs.items():
+        cells = []
+        for m in methods:
+            r = by_method.get(m)
+            if r is None:
+                cells.append("-")
+                continue
+            cell = f"{fmt(r['rot_rmse_deg'])} / {fmt(r['rot_max_deg'])}"
+            if r.get("invalid"):
+                cell += f" ({r['invalid']} inv.)"
+            cells.append(cell)
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    out.append("\n## Yaw error RMSE [deg]; mean estimated rate [deg/s] (rate RMSE vs gyro where one exists)\n")
+    out.append("| sequence | " + " | ".join(methods) + " |")
+    out.append("|---" * (len(methods) + 1) + "|")
+    for (group, label), by_method in runs.items():
+        cells = []
+        for m in methods:
+            r = by_method.get(m)
+            if r is None:
+                cells.append("-")
+                continue
+            cell = f"{fmt(r['yaw_rmse_deg'])}; {fmt(r['mean_rate_dps'])}"
+            if r.get("rate_rmse_dps") is not None:
+                cell += f" ({fmt(r['rate_rmse_dps'])})"
+            cells.append(cell)
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    out.append("\n## Estimation time per frame pair [ms] (front end shared: detect + describe + match)\n")
+    out.append("| sequence | matches | front end | " + " | ".join(methods) + " |")
+    out.append("|---" * (len(methods) + 3) + "|")
+    for (group, label), by_method in runs.items():
+        any_row = next(iter(by_method.values()))
+        front = sum(num(any_row.get("ms_" + k)) for k in ("detect", "describe", "match"))
+        cells = [fmt(by_method[m]["ms_estimate"], 2) if m in by_method else "-" for m in methods]
+        out.append(f"| {label} | {fmt(any_row.get('matches_mean'), 0)} | {fmt(front, 1)} | "
+                   + " | ".join(cells) + " |")
+    if sweep_rows:
+        out.append("\n## CPU estimation time vs matches [ms] (default hypotheses for vote/paper; "
+                   f"{sweep_rows[0].get('dataset', '')})\n")
+        hyp_default = default_hypotheses(sweep_rows)
+        match_values = sorted({int(r["matches"]) for r in sweep_rows})
+        sweep_methods = sorted({r["method"] for r in sweep_rows}, key=method_key)
+        out.append("| method | " + " | ".join(str(m) for m in match_values) + " |")
+        out.append("|---" * (len(match_values) + 1) + "|")
+        for m in sweep_methods:
+            cells = []
+            for n in match_values:
+                hit = [r for r in sweep_rows if r["method"] == m and int(r["matches"]) == n
+                       and int(r["hypotheses"]) in (0, hyp_default)]
+                cells.append(fmt(hit[0]["ms_mean"], 3) if hit else "-")
+            out.append(f"| {m} | " + " | ".join(cells) + " |")
+    with open(path, "w") as f:
+        f.write("\n".join(out) + "\n")
+
+
+def default_hypotheses(sweep_rows):
+    hyps = sorted({int(r["hypotheses"]) for r in sweep_rows if int(r["hypotheses"]) > 0})
+    if not hyps:
+        return 0
+    return 2000 if 2000 in hyps else hyps[len(hyps) // 2]
+
+
+def bar_plot(rows, methods, key, ylabel, title, path, log=True, groups=("shared", "rendered")):
+    runs = [(k, v) for k, v in runs_of(rows).items() if k[0] in groups]
+    if not runs:
+        return
+    fig, ax = plt.subplots(figsize=(max(8, 1.6 * len(runs) + 5), 4.5))
+    width = 0.8 / max(1, len(methods))
+    x = np.arange(len(runs))
+    for i, m in enumerate(methods):
+        vals = [num(v.get(m, {}).get(key)) for _, v in runs]
+        vals = [max(v, 1e-4) if not math.isnan(v) else np.nan for v in vals]
+        ax.bar(x + (i - (len(methods) - 1) / 2) * width, vals, width, label=m)
+    ax.set_xticks(x)
+    ax.set_xticklabels([k[1] for k, _ in runs], rotation=15)
+    if log:
+        ax.set_yscale("log")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(axis="y", alpha=0.3, which="both")
+    ax.legend(fontsize=8, bbox_to_anchor=(1.01, 1.0), loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def line_plot(rows, methods, group, xlabel, path, title, xkey="x"):
+    sel = [r for r in rows if r["group"] == group or (r["group"] == "rendered" and r["label"] == base_of(group))]
+    if len({r["label"] for r in sel}) < 2:
+        return
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for m in methods:
+        pts = sorted((num(r.get(xkey)) if r["group"] == group else base_x(group, r), num(r["rot_rmse_deg"]),
+                      num(r["yaw_rmse_deg"])) for r in sel if r["method"] == m)
+        if not pts:
+            continue
+        xs, rot, yaw = zip(*pts)
+        axes[0].plot(xs, rot, marker="o", label=m)
+        axes[1].plot(xs, yaw, marker="o", label=m)
+    for ax, what in zip(axes, ("rotation error RMSE [deg]", "yaw error RMSE [deg]")):
+        ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(what)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def base_of(group):
+    return {"outliers": "drive", "translation": "forward"}.get(group, "")
+
+
+def base_x(group, r):
+    # The un-modified rendered run is the sweep's first point: no outliers, stride 1.
+    return 0.0 if group == "outliers" else 1.0
+
+
+def translation_axis(rows):
+    """Mean metres per pair by stride, for the translation plot's axis label."""
+    per = {}
+    for r in rows:
+        if (r["group"] == "translation" or (r["group"] == "rendered" and r["label"] == "forward")) \
+                and r.get("true_trans_mean_m") is not None:
+            per[int(r.get("stride", 1))] = float(r["true_trans_mean_m"])
+    return ", ".join(f"{s}: {m:.2f} m" for s, m in sorted(per.items()))
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def load_gpu(gpu_dir):
+    rows = []
+    for path in sorted(glob.glob(os.path.join(gpu_dir, "*.csv"))):
+        try:
+            data = read_csv(path)
+        except (OSError, csv.Error) as e:
+            print(f"[bench_plot] skipping {path}: {e}", file=sys.stderr)
+            continue
+        if not data or "hypotheses" not in data[0]:
+            print(f"[bench_plot] skipping {path}: no 'hypotheses' column", file=sys.stderr)
+            continue
+        tkey = next((k for k in ("ms_mean", "ms", "time_ms", "kernel_ms", "total_ms") if k in data[0]), None)
+        if tkey is None:
+            print(f"[bench_plot] skipping {path}: no time column (ms_mean, ms, time_ms, kernel_ms)", file=sys.stderr)
+            continue
+        name = os.path.splitext(os.path.basename(path))[0]
+        for d in data:
+            try:
+                rows.append({"method": d.get("method") or name, "backend": d.get("backend") or "cuda",
+                             "hypotheses": int(float(d["hypotheses"])),
+                             "matches": int(float(d.get("matches") or 0)),
+                             "ms_mean": float(d[tkey]), "source": name})
+            except (TypeError, ValueError):
+                continue
+    return rows
+
+
+def timing_plots(sweep_rows, gpu_rows, out):
+    allrows = [dict(r, source="cpu sweep") for r in sweep_rows] + gpu_rows
+    if not allrows:
+        return
+    # Time vs hypotheses (at the largest match count common to the sweep), per method/backend.
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    ax = axes[0]
+    curves = {}
+    for r in allrows:
+        if int(r["hypotheses"]) <= 0:
+            continue
+        curves.setdefault((r["method"], r["backend"], r["source"], int(r["matches"])), []).append(
+            (int(r["hypotheses"]), float(r["ms_mean"])))
+    if curves:
+        # One match count per (method, backend, source): the largest it has.
+        best = {}
+        for (m, b, s, n) in curves:
+            best[(m, b, s)] = max(best.get((m, b, s), 0), n)
+        for (m, b, s), n in sorted(best.items()):
+            pts = sorted(curves[(m, b, s, n)])
+            xs, ys = zip(*pts)
+            ax.plot(xs, ys, marker="o", label=f"{m} ({b}, {n} matches)" + ("" if s == "cpu sweep" else f" [{s}]"))
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("hypotheses per frame")
+        ax.set_ylabel("estimate time [ms]")
+        ax.set_title("estimation time vs hypotheses")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    ax = axes[1]
+    hyp_default = default_hypotheses(sweep_rows) if sweep_rows else 0
+    by_method = {}
+    for r in allrows:
+        h = int(r["hypotheses"])
+        if int(r["matches"]) <= 0 or (r["source"] == "cpu sweep" and h not in (0, hyp_default)):
+            continue
+        if r["source"] != "cpu sweep" and h != max(int(x["hypotheses"]) for x in allrows
+                                                    if x["source"] == r["source"] and x["method"] == r["method"]):
+            continue
+        by_method.setdefault((r["method"], r["backend"], r["source"]), []).append(
+            (int(r["matches"]), float(r["ms_mean"])))
+    for (m, b, s), pts in sorted(by_method.items(), key=lambda kv: method_key(kv[0][0])):
+        pts = sorted(pts)
+        if len(pts) < 2:
+            continue
+        xs, ys = zip(*pts)
+        ax.plot(xs, ys, marker="o", label=f"{m} ({b})" + ("" if s == "cpu sweep" else f" [{s}]"))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("matches per frame pair")
+    ax.set_ylabel("estimate time [ms]")
+    ax.set_title(f"estimation time vs matches ({hyp_default} hypotheses for vote/paper)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "timing_sweep.png"), dpi=110)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--results", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--sweep", default="")
+    ap.add_argument("--gpu-dir", default="")
+    ap.add_argument("--machine", default="unknown machine")
+    a = ap.parse_args()
+
+    rows = load_results(a.results) if os.path.exists(a.results) else []
+    if not rows:
+        print("[bench_plot] no results to tabulate", file=sys.stderr)
+        return 1
+    methods = sorted({r["method"] for r in rows}, key=method_key)
+    sweep_rows = read_csv(a.sweep) if a.sweep and os.path.exists(a.sweep) else []
+    gpu_rows = load_gpu(a.gpu_dir) if a.gpu_dir and os.path.isdir(a.gpu_dir) else []
+
+    write_csv(rows, os.path.join(a.out, "results.csv"))
+    write_table(rows, methods, os.path.join(a.out, "table.md"), a.machine, sweep_rows)
+    bar_plot(rows, methods, "rot_rmse_deg", "rotation error RMSE [deg]",
+             "accuracy per method and sequence", os.path.join(a.out, "accuracy.png"))
+    bar_plot(rows, methods, "yaw_rmse_deg", "yaw error RMSE [deg]",
+             "yaw accuracy per method and sequence", os.path.join(a.out, "accuracy_yaw.png"))
+    bar_plot(rows, methods, "ms_estimate", "estimate time per frame pair [ms]",
+             f"estimation time ({a.machine})", os.path.join(a.out, "estimate_time.png"))
+    line_plot(rows, methods, "outliers", "injected outlier fraction", os.path.join(a.out, "accuracy_vs_outliers.png"),
+              "rendered drive: accuracy vs outlier ratio")
+    trans = translation_axis(rows)
+    line_plot(rows, methods, "translation", "frame stride" + (f" (translation per pair: {trans})" if trans else ""),
+              os.path.join(a.out, "accuracy_vs_translation.png"), "rendered forward drive: accuracy vs translation",
+              xkey="stride")
+    timing_plots(sweep_rows, gpu_rows, a.out)
+    pngs = sorted(os.path.basename(p) for p in glob.glob(os.path.join(a.out, "*.png")))
+    print(f"[bench_plot] wrote results.csv, table.md, {', '.join(pngs)}" +
+          (f" (GPU CSV rows: {len(gpu_rows)})" if gpu_rows else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
