@@ -1,0 +1,409 @@
+// Rotation estimator: the paper's yaw voting and the 3-D voting + verification + refinement method.
+#include "visual_gyro/rotation_estimator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+
+#include "visual_gyro/hypothesis_voter.h"
+#include "rotation_refinement.h"
+
+#ifdef VISUAL_GYRO_WITH_CUDA
+#include "../../cuda/cuda_voter.h"
+#endif
+
+namespace visual_gyro {
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+double elapsedMs(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+RotationResult invalidResult(const std::string& why) {
+  RotationResult result;
+  result.valid = false;
+  result.error = why;
+  return result;
+}
+
+// Rejects what would otherwise become silent garbage downstream: unequal lists, NaNs, non-unit
+// vectors (a caller passing pixels instead of bearings is the likely mistake).
+std::string checkBearings(const std::vector<Eigen::Vector3d>& previous,
+                          const std::vector<Eigen::Vector3d>& current, int min_matches) {
+  if (previous.size() != current.size()) {
+    std::ostringstream s;
+    s << "bearing lists differ in size (" << previous.size() << " previous, " << current.size()
+      << " current)";
+    return s.str();
+  }
+  if (static_cast<int>(previous.size()) < std::max(3, min_matches)) {
+    std::ostringstream s;
+    s << "too few matches: " << previous.size() << " (need " << std::max(3, min_matches) << ")";
+    return s.str();
+  }
+  for (size_t i = 0; i < previous.size(); ++i) {
+    for (const Eigen::Vector3d* b : {&previous[i], &current[i]}) {
+      if (!b->allFinite()) return "bearing " + std::to_string(i) + " is not finite";
+      if (std::abs(b->norm() - 1.0) > 1e-3)
+        return "bearing " + std::to_string(i) + " is not a unit vector (norm " +
+               std::to_string(b->norm()) + ")";
+    }
+  }
+  return "";
+}
+
+std::vector<hyp::Vec3f> toFloat(const std::vector<Eigen::Vector3d>& v) {
+  std::vector<hyp::Vec3f> out(v.size());
+  for (size_t i = 0; i < v.size(); ++i)
+    out[i] = hyp::make3(static_cast<float>(v[i].x()), static_cast<float>(v[i].y()),
+                        static_cast<float>(v[i].z()));
+  return out;
+}
+
+Eigen::Matrix3d expMap(const Eigen::Vector3d& w) {
+  const double angle = w.norm();
+  if (angle < 1e-12) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
+Eigen::Vector3d logMap(const Eigen::Matrix3d& R) {
+  const Eigen::AngleAxisd aa(R);
+  return aa.angle() * aa.axis();
+}
+
+void fillAngles(const Eigen::Matrix3d& R, RotationResult* result) {
+  result->rotation = R;
+  result->quaternion = Eigen::Quaterniond(R).normalized();
+  result->rotation_vector = logMap(R);
+  const Eigen::Vector3d ypr = yawPitchRoll(R);
+  result->yaw = ypr[0];
+  result->pitch = ypr[1];
+  result->roll = ypr[2];
+}
+
+hyp::TripleOptions tripleOptions(const EstimatorSettings& s, bool centroid, double max_change_deg) {
+  hyp::TripleOptions opt;
+  opt.centroid_subtraction = centroid ? 1 : 0;
+  opt.min_separation = static_cast<float>(2.0 * std::sin(0.5 * s.min_separation_deg * kDeg));
+  opt.min_triangle_area = static_cast<float>(s.min_triangle_area_deg2 * kDeg * kDeg);
+  opt.max_angle_change = static_cast<float>(max_change_deg * kDeg);
+  return opt;
+}
+
+int binsFor(double window_deg, double bin_deg) {
+  return std::max(1, static_cast<int>(std::ceil(2.0 * window_deg / bin_deg - 1e-9)));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+std::string validateSettings(const EstimatorSettings& s) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (s.method != "vote" && s.method != "paper")
+    return "method must be \"vote\" or \"paper\", got \"" + s.method + "\"";
+  if (s.backend != "auto" && s.backend != "cpu" && s.backend != "cuda")
+    return "backend must be \"auto\", \"cpu\" or \"cuda\", got \"" + s.backend + "\"";
+  if (s.hypotheses < 1 || s.hypotheses > 10000000) return "hypotheses must be in 1..10000000";
+  if (!(s.min_separation_deg >= 0.0)) return "min_separation_deg must be >= 0";
+  if (!(s.min_triangle_area_deg2 >= 0.0)) return "min_triangle_area_deg2 must be >= 0";
+  if (!positive(s.yaw_bin_deg)) return "yaw_bin_deg must be > 0";
+  if (!positive(s.yaw_window_deg) || s.yaw_window_deg >= 180.0)
+    return "yaw_window_deg must be in (0, 180)";
+  if (binsFor(s.yaw_window_deg, s.yaw_bin_deg) > (1 << 22)) return "yaw histogram too fine";
+  if (!positive(s.rotation_bin_deg)) return "rotation_bin_deg must be > 0";
+  if (!positive(s.rotation_window_deg) || s.rotation_window_deg >= 90.0)
+    return "rotation_window_deg must be in (0, 90)";
+  if (!positive(s.wide_window_deg) || s.wide_window_deg >= 90.0)
+    return "wide_window_deg must be in (0, 90)";
+  if (binsFor(s.rotation_window_deg, s.rotation_bin_deg) > 128)
+    return "rotation histogram too fine: more than 128 bins per axis (widen rotation_bin_deg)";
+  if (!(s.max_angle_change_deg >= 0.0)) return "max_angle_change_deg must be >= 0";
+  if (s.candidates < 1) return "candidates must be >= 1";
+  if (!positive(s.inlier_threshold_deg)) return "inlier_threshold_deg must be > 0";
+  if (s.refine_iterations < 0) return "refine_iterations must be >= 0";
+  if (s.min_matches < 3) return "min_matches must be >= 3";
+  if (s.min_votes < 1) return "min_votes must be >= 1";
+  if (!(s.min_inlier_ratio >= 0.0 && s.min_inlier_ratio <= 1.0))
+    return "min_inlier_ratio must be in [0, 1]";
+  if (!(s.min_covariance_rad2 > 0.0)) return "min_covariance_rad2 must be > 0";
+  return "";
+}
+
+Eigen::Vector3d yawPitchRoll(const Eigen::Matrix3d& R) {
+  const double yaw = std::atan2(R(0, 2), R(2, 2));
+  const double pitch = std::asin(std::clamp(-R(1, 2), -1.0, 1.0));
+  const double roll = std::atan2(R(1, 0), R(1, 1));
+  return Eigen::Vector3d(yaw, pitch, roll);
+}
+
+double rotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return Eigen::AngleAxisd(a.transpose() * b).angle();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
+                                     std::unique_ptr<HypothesisVoter> voter)
+    : settings_(settings), voter_(std::move(voter)) {
+  const std::string problem = validateSettings(settings_);
+  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  if (!voter_) throw std::invalid_argument("RotationEstimator needs a voter");
+}
+
+RotationEstimator::~RotationEstimator() = default;
+
+void RotationEstimator::setSettings(const EstimatorSettings& settings) {
+  const std::string problem = validateSettings(settings);
+  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  settings_ = settings;
+}
+
+std::string RotationEstimator::backendName() const { return voter_->name(); }
+
+RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& previous,
+                                           const std::vector<Eigen::Vector3d>& current,
+                                           const RotationPrior& prior) {
+  const auto start = std::chrono::steady_clock::now();
+  RotationResult result;
+  const std::string problem = checkBearings(previous, current, settings_.min_matches);
+  if (!problem.empty()) {
+    result = invalidResult(problem);
+    result.matches_used = static_cast<int>(std::min(previous.size(), current.size()));
+  } else {
+    try {
+      result = settings_.method == "paper" ? estimatePaper(previous, current)
+                                           : estimateVote(previous, current, prior);
+    } catch (const std::exception& e) {
+      // A backend failure mid-stream (e.g. a lost GPU) must not take the caller down.
+      result = invalidResult(std::string("estimator failed: ") + e.what());
+    }
+    result.matches_used = static_cast<int>(previous.size());
+  }
+  ++frame_count_;
+  result.backend = voter_->name();
+  result.times.estimate = elapsedMs(start);
+  result.times.total = result.times.estimate;
+  return result;
+}
+
+// The faithful reproduction: centroid-subtracted (by default) Arun rotations of random triples,
+// yaw into a histogram, the fullest bin wins and is read at its centre.
+RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3d>& previous,
+                                                const std::vector<Eigen::Vector3d>& current) {
+  const std::vector<hyp::Vec3f> prev = toFloat(previous), cur = toFloat(current);
+  VoteRequest request;
+  request.prev = prev.data();
+  request.cur = cur.data();
+  request.matches = static_cast<uint32_t>(prev.size());
+  request.hypotheses = static_cast<uint32_t>(settings_.hypotheses);
+  request.seed = settings_.seed + frame_count_;
+  request.triple = tripleOptions(settings_, settings_.centroid_subtraction, 0.0);
+  request.grid.kind = hyp::kVoteYaw;
+  request.grid.centre[0] = request.grid.centre[1] = request.grid.centre[2] = 0.f;
+  request.grid.bin_width = static_cast<float>(settings_.yaw_bin_deg * kDeg);
+  request.grid.bins = binsFor(settings_.yaw_window_deg, settings_.yaw_bin_deg);
+  VoteResult votes;
+  voter_->vote(request, &votes);
+
+  RotationResult result;
+  result.hypotheses_drawn = settings_.hypotheses;
+  result.hypotheses_accepted = static_cast<int>(votes.accepted);
+  if (votes.winner < 0) return invalidResult("no hypothesis voted (all triples degenerate)");
+  const int count = votes.histogram[votes.winner];
+  result.winning_votes = count;
+  const double yaw = hyp::binCentre(votes.winner, 0.f, request.grid);
+  // Pitch and roll are not voted on; the winning bin's hypotheses' mean stands in for them.
+  const double pitch = votes.cell_sums[3 * votes.winner + 1] / count;
+  const double roll = votes.cell_sums[3 * votes.winner + 2] / count;
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()) *
+                             Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()))
+                                .toRotationMatrix();
+  fillAngles(R, &result);
+  // The paper gives no uncertainty; a uniform distribution over the winning bin is the honest floor
+  // for yaw, and pitch/roll are as uncertain as the window.
+  const double bin = settings_.yaw_bin_deg * kDeg;
+  const double window = settings_.yaw_window_deg * kDeg;
+  result.covariance = Eigen::Vector3d(window * window / 3.0, bin * bin / 12.0, window * window / 3.0)
+                          .asDiagonal();
+  result.covariance.diagonal() =
+      result.covariance.diagonal().cwiseMax(settings_.min_covariance_rad2);
+  if (count < settings_.min_votes) {
+    result.valid = false;
+    result.error = "flat histogram: winning bin has " + std::to_string(count) + " votes (need " +
+                   std::to_string(settings_.min_votes) + ")";
+    return result;
+  }
+  result.valid = true;
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The vote method: 3-D voting of rotation-only triples, translation-aware verification of the
+// fullest cells, model selection (pure rotation or general motion) and robust refinement.
+
+namespace {
+
+struct Candidate {
+  Eigen::Vector3d rotation_vector;
+  int votes = 0;
+};
+
+// The fullest cells, each read as the vote-weighted mean of its 3x3x3 neighbourhood (which
+// absorbs the quantisation of the grid); cells adjacent to an already chosen one are skipped so
+// the candidates are distinct modes.
+std::vector<Candidate> topCandidates(const VoteResult& votes, const hyp::VoteGrid& grid, int wanted) {
+  std::vector<int> order;
+  for (int c = 0; c < static_cast<int>(votes.histogram.size()); ++c)
+    if (votes.histogram[c] > 0) order.push_back(c);
+  const int keep = std::min<int>(static_cast<int>(order.size()), 8 * wanted);
+  std::partial_sort(order.begin(), order.begin() + keep, order.end(), [&](int a, int b) {
+    return votes.histogram[a] != votes.histogram[b] ? votes.histogram[a] > votes.histogram[b] : a < b;
+  });
+  order.resize(keep);
+  const int n = grid.bins;
+  std::vector<Candidate> out;
+  std::vector<Eigen::Vector3i> chosen;
+  for (int cell : order) {
+    const Eigen::Vector3i ijk(cell / (n * n), (cell / n) % n, cell % n);
+    bool near = false;
+    for (const auto& c : chosen) near = near || (c - ijk).cwiseAbs().maxCoeff() <= 1;
+    if (near) continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int count = 0;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const Eigen::Vector3i q = ijk + Eigen::Vector3i(dx, dy, dz);
+          if ((q.array() < 0).any() || (q.array() >= n).any()) continue;
+          const int qc = (q.x() * n + q.y()) * n + q.z();
+          count += votes.histogram[qc];
+          sum += Eigen::Vector3d(votes.cell_sums[3 * qc], votes.cell_sums[3 * qc + 1],
+                                 votes.cell_sums[3 * qc + 2]);
+        }
+    Candidate c;
+    c.rotation_vector = sum / count;
+    c.votes = votes.histogram[cell];
+    out.push_back(c);
+    chosen.push_back(ijk);
+    if (static_cast<int>(out.size()) == wanted) break;
+  }
+  return out;
+}
+
+}  // namespace
+
+RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d>& previous,
+                                               const std::vector<Eigen::Vector3d>& current,
+                                               const RotationPrior& prior) {
+  const std::vector<hyp::Vec3f> prev = toFloat(previous), cur = toFloat(current);
+  const uint64_t seed = settings_.seed + frame_count_;
+  const double threshold = settings_.inlier_threshold_deg * kDeg;
+  const int n = static_cast<int>(previous.size());
+
+  VoteRequest request;
+  request.prev = prev.data();
+  request.cur = cur.data();
+  request.matches = static_cast<uint32_t>(n);
+  request.hypotheses = static_cast<uint32_t>(settings_.hypotheses);
+  request.seed = seed;
+  request.grid.kind = hyp::kVoteRotationVector;
+
+  const bool prior_usable = settings_.use_prior && prior.valid && prior.rotation_vector.allFinite() &&
+                            prior.rotation_vector.norm() < 60.0 * kDeg;
+  RotationResult result;
+  VerifiedRotation best;
+  auto consider = [&](const Eigen::Vector3d& rotation_vector) {
+    const VerifiedRotation v = verifyRotation(previous, current, expMap(rotation_vector), threshold, seed);
+    if (v.inliers > best.inliers) best = v;
+  };
+  const double needed = std::max<double>(settings_.min_matches, settings_.min_inlier_ratio * n);
+  // Pass 1: a narrow window around the prior (or zero), voting only with triples whose pairwise
+  // angles survive the motion (far points: rotation-only triples are unbiased there).
+  // Pass 2, when pass 1 explains too few matches (wrong prior, large motion, or no far structure):
+  // a wide window and every non-degenerate triple; its biased modes are still good starting points
+  // for the translation-aware refinement.
+  for (int pass = 0; pass < 2; ++pass) {
+    const bool narrow = pass == 0;
+    const Eigen::Vector3d centre = narrow && prior_usable ? prior.rotation_vector : Eigen::Vector3d::Zero();
+    const double window = narrow ? settings_.rotation_window_deg : settings_.wide_window_deg;
+    const double bin = narrow ? settings_.rotation_bin_deg
+                              : std::max(settings_.rotation_bin_deg, 2.0 * window / 64.0);
+    for (int k = 0; k < 3; ++k) request.grid.centre[k] = static_cast<float>(centre[k]);
+    request.grid.bin_width = static_cast<float>(bin * kDeg);
+    request.grid.bins = binsFor(window, bin);
+    request.triple = tripleOptions(settings_, false, narrow ? settings_.max_angle_change_deg : 0.0);
+    request.seed = seed + (narrow ? 0 : 0x9E3779B97F4A7C15ull);
+    VoteResult votes;
+    voter_->vote(request, &votes);
+    result.hypotheses_drawn += settings_.hypotheses;
+    result.hypotheses_accepted += static_cast<int>(votes.accepted);
+    const int winning = votes.winner >= 0 ? votes.histogram[votes.winner] : 0;
+    result.winning_votes = std::max(result.winning_votes, winning);
+    for (const Candidate& c : topCandidates(votes, request.grid, settings_.candidates))
+      consider(c.rotation_vector);
+    if (narrow && prior_usable) consider(prior.rotation_vector);
+    if (best.inliers >= needed && result.winning_votes >= settings_.min_votes) break;
+  }
+  if (best.inliers == 0) return invalidResult("no candidate rotation (all triples degenerate)");
+
+  const RefinedRotation refined =
+      refineRotation(previous, current, best, threshold, settings_.refine_iterations);
+  fillAngles(refined.rotation, &result);
+  result.covariance = refined.covariance;
+  for (int k = 0; k < 3; ++k)
+    result.covariance(k, k) = std::max(result.covariance(k, k), settings_.min_covariance_rad2);
+  result.inliers = refined.inliers;
+  result.pure_rotation = refined.pure_rotation;
+
+  if (result.winning_votes < settings_.min_votes) {
+    result.error = "flat histogram: winning cell has " + std::to_string(result.winning_votes) +
+                   " votes (need " + std::to_string(settings_.min_votes) + ")";
+  } else if (refined.inliers < needed) {
+    result.error = "too few inliers: " + std::to_string(refined.inliers) + " of " + std::to_string(n);
+  }
+  result.valid = result.error.empty();
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+bool cudaBackendCompiled() {
+#ifdef VISUAL_GYRO_WITH_CUDA
+  return true;
+#else
+  return false;
+#endif
+}
+
+std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettings& settings,
+                                                           const WarningSink& warn) {
+  const std::string problem = validateSettings(settings);
+  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  std::unique_ptr<HypothesisVoter> voter;
+  if (settings.backend == "cuda" || settings.backend == "auto") {
+#ifdef VISUAL_GYRO_WITH_CUDA
+    try {
+      voter = createCudaVoter();
+    } catch (const std::exception& e) {
+      if (warn) warn(std::string("CUDA backend unavailable (") + e.what() + "); using the CPU backend");
+    }
+#else
+    if (settings.backend == "cuda" && warn)
+      warn("CUDA backend requested but this build has no CUDA support; using the CPU backend");
+#endif
+  }
+  if (!voter) voter = createCpuVoter();
+  return std::make_unique<RotationEstimator>(settings, std::move(voter));
+}
+
+}  // namespace visual_gyro

@@ -1,0 +1,47 @@
+// Verification and refinement of a candidate rotation against all matches (vote method).
+// Private to src/core. Conventions as in rotation_estimator.h: b_prev ~ R b_cur.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace visual_gyro {
+
+/// A candidate rotation checked against every match.
+struct VerifiedRotation {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  /// Translation direction (unit, previous frame) best supported given the rotation; zero when the
+  /// matches carry no translation information.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  int inliers = 0;           ///< max of the two counts below
+  int epipolar_inliers = 0;  ///< |t . (b_prev x R b_cur)| < threshold
+  int rotation_inliers = 0;  ///< |b_prev x R b_cur| < threshold (pure rotation explains them)
+};
+
+/// Counts the matches consistent with `rotation`, both as a pure rotation and as a rotation plus
+/// the translation direction found by a small 2-point RANSAC on the epipolar-plane normals
+/// n_i = b_prev_i x R b_cur_i, which must all be orthogonal to the translation. threshold [rad].
+VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
+                                const std::vector<Eigen::Vector3d>& current,
+                                const Eigen::Matrix3d& rotation, double threshold, uint64_t seed);
+
+/// The refined rotation with its uncertainty.
+struct RefinedRotation {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< rotation vector [rad^2]
+  int inliers = 0;
+  bool pure_rotation = false;  ///< refined as a pure rotation (no usable translation)
+};
+
+/// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
+/// matches as rotation + translation, minimises the angular residuals |b_prev x R b_cur| (robust
+/// Kabsch); otherwise minimises the epipolar residuals t . (b_prev x R b_cur) over R and the unit
+/// t jointly (Gauss-Newton, Huber weights), which is Kneip & Lynen's eigenvalue cost
+/// lambda_min(sum n n^T) with t as the eigenvector. Covariance = sigma^2 (J^T W J)^-1 for the
+/// rotation, the translation marginalised.
+RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
+                               const std::vector<Eigen::Vector3d>& current,
+                               const VerifiedRotation& start, double threshold, int iterations);
+
+}  // namespace visual_gyro

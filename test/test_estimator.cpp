@@ -1,0 +1,384 @@
+// Tests of the triple solver, the voting, and both estimator methods on synthetic bearings.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <algorithm>
+#include <string>
+#include <random>
+#include <set>
+
+#include "visual_gyro/hypothesis_math.h"
+#include "visual_gyro/hypothesis_voter.h"
+#include "visual_gyro/rotation_estimator.h"
+
+namespace vg = visual_gyro;
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+struct Scene {
+  std::vector<Vector3d> previous, current;
+  std::vector<bool> inlier;
+};
+
+Matrix3d rotationFromYpr(double yaw, double pitch, double roll) {
+  return (Eigen::AngleAxisd(yaw, Vector3d::UnitY()) * Eigen::AngleAxisd(pitch, Vector3d::UnitX()) *
+          Eigen::AngleAxisd(roll, Vector3d::UnitZ()))
+      .toRotationMatrix();
+}
+
+Vector3d randomBearingInView(std::mt19937& rng, double half_fov_x = 0.5, double half_fov_y = 0.35) {
+  std::uniform_real_distribution<double> ux(-half_fov_x, half_fov_x), uy(-half_fov_y, half_fov_y);
+  return Vector3d(std::tan(ux(rng)), std::tan(uy(rng)), 1.0).normalized();
+}
+
+Vector3d perturb(const Vector3d& b, double sigma, std::mt19937& rng) {
+  if (sigma <= 0.0) return b;
+  std::normal_distribution<double> n(0.0, sigma);
+  return (b + Vector3d(n(rng), n(rng), n(rng)).cross(b)).normalized();
+}
+
+// Points seen by the current camera at depths in [near, far]; the previous camera sees them at
+// X_prev = R X_cur + t (R, t: pose of the current camera in the previous one).
+Scene makeScene(const Matrix3d& R, const Vector3d& t, int n, double noise, double outliers,
+                double near, double far, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> depth(near, far), u01(0.0, 1.0);
+  Scene s;
+  while (static_cast<int>(s.current.size()) < n) {
+    const Vector3d cur = randomBearingInView(rng);
+    const Vector3d X = cur * depth(rng) / cur.z();
+    const Vector3d Xp = R * X + t;
+    if (Xp.z() <= 0.1) continue;
+    const bool outlier = u01(rng) < outliers;
+    s.current.push_back(perturb(cur, noise, rng));
+    s.previous.push_back(outlier ? randomBearingInView(rng) : perturb(Xp.normalized(), noise, rng));
+    s.inlier.push_back(!outlier);
+  }
+  return s;
+}
+
+vg::hyp::Vec3f toF(const Vector3d& v) {
+  return vg::hyp::make3(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));
+}
+
+Matrix3d toD(const vg::hyp::Mat3f& R) {
+  Matrix3d m;
+  for (int i = 0; i < 9; ++i) m(i / 3, i % 3) = R.m[i];
+  return m;
+}
+
+vg::hyp::TripleOptions defaultTripleOptions(bool centroid) {
+  vg::hyp::TripleOptions opt;
+  opt.centroid_subtraction = centroid ? 1 : 0;
+  opt.min_separation = static_cast<float>(0.3 * kDeg);
+  opt.min_triangle_area = static_cast<float>(0.5 * kDeg * kDeg);
+  opt.max_angle_change = 0.f;
+  return opt;
+}
+
+vg::EstimatorSettings cpuSettings(const std::string& method) {
+  vg::EstimatorSettings s;
+  s.method = method;
+  s.backend = "cpu";
+  return s;
+}
+
+}  // namespace
+
+TEST(TripleSolver, ExactForNoiseFreeTriplesAndRandomRotations) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> angle(-M_PI * 0.95, M_PI * 0.95);
+  int solved = 0;
+  std::vector<double> errors;
+  for (int trial = 0; trial < 2000; ++trial) {
+    // Large rotations included: the triple's geometry, not the prior, must determine R.
+    const Vector3d axis = Vector3d::Random().normalized();
+    const Matrix3d R = Eigen::AngleAxisd(angle(rng), axis).toRotationMatrix();
+    vg::hyp::Vec3f prev[3], cur[3];
+    for (int i = 0; i < 3; ++i) {
+      const Vector3d c = randomBearingInView(rng);
+      cur[i] = toF(c);
+      prev[i] = toF(R * c);
+    }
+    for (bool centroid : {false, true}) {
+      vg::hyp::Mat3f out;
+      const int status = vg::hyp::solveTripleRotation(prev, cur, defaultTripleOptions(centroid), &out);
+      if (status != vg::hyp::kTripleOk) continue;  // degenerate draws are rejected, not wrong
+      ++solved;
+      const Matrix3d est = toD(out);
+      errors.push_back(vg::rotationAngleBetween(est, R));
+      EXPECT_LT(errors.back(), 1e-3) << "trial " << trial << " centroid " << centroid;
+      EXPECT_NEAR(est.determinant(), 1.0, 1e-4);
+    }
+  }
+  EXPECT_GT(solved, 3600);  // almost all random triples are well conditioned
+  // The inputs are float bearings (rounding ~6e-8): thin triangles amplify that into ~1e-4 rad,
+  // typical triples stay near float precision.
+  std::sort(errors.begin(), errors.end());
+  EXPECT_LT(errors[errors.size() / 2], 1e-5);
+  EXPECT_LT(errors[errors.size() * 99 / 100], 1e-4);
+}
+
+TEST(TripleSolver, ExactWhenPointsShareOneDepthUnderTranslation) {
+  // Arun with centroid subtraction is exact for a rigid motion of three points: points at one
+  // common depth stay a rigid triangle after scaling bearings to that depth.
+  const Matrix3d R = rotationFromYpr(3 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Vector3d t(0.0, 0.0, 0.0);
+  std::mt19937 rng(5);
+  vg::hyp::Vec3f prev[3], cur[3];
+  for (int i = 0; i < 3; ++i) {
+    const Vector3d c = randomBearingInView(rng);
+    cur[i] = toF(c);
+    prev[i] = toF(R * c + t);
+  }
+  vg::hyp::Mat3f out;
+  ASSERT_EQ(vg::hyp::solveTripleRotation(prev, cur, defaultTripleOptions(true), &out), vg::hyp::kTripleOk);
+  EXPECT_LT(vg::rotationAngleBetween(toD(out), R), 1e-4);
+}
+
+TEST(TripleSolver, RejectsDegenerateTriples) {
+  const vg::hyp::TripleOptions opt = defaultTripleOptions(false);
+  vg::hyp::Mat3f out;
+  const Vector3d a = Vector3d(0.1, 0.0, 1.0).normalized(), b = Vector3d(-0.1, 0.05, 1.0).normalized(),
+                 c = Vector3d(0.0, -0.1, 1.0).normalized();
+  {  // repeated bearing
+    vg::hyp::Vec3f p[3] = {toF(a), toF(a), toF(c)}, q[3] = {toF(a), toF(a), toF(c)};
+    EXPECT_EQ(vg::hyp::solveTripleRotation(p, q, opt, &out), vg::hyp::kTripleRepeated);
+  }
+  {  // three pixels on one image row, 1.2 deg apart: their bearings lie on a great circle
+    const Vector3d r0(0.0, 0.05, 1.0), r1(0.02, 0.05, 1.0), r2(0.04, 0.05, 1.0);
+    vg::hyp::Vec3f p[3] = {toF(r0.normalized()), toF(r1.normalized()), toF(r2.normalized())};
+    EXPECT_EQ(vg::hyp::solveTripleRotation(p, p, opt, &out), vg::hyp::kTripleCollinear);
+  }
+  {  // mirror image: the best orthogonal fit is a reflection (det H < 0)
+    const Matrix3d M = Vector3d(1.0, -1.0, 1.0).asDiagonal();
+    vg::hyp::Vec3f p[3] = {toF(M * a), toF(M * b), toF(M * c)}, q[3] = {toF(a), toF(b), toF(c)};
+    EXPECT_EQ(vg::hyp::solveTripleRotation(p, q, opt, &out), vg::hyp::kTripleReflection);
+  }
+  {  // not a valid bearing at all
+    vg::hyp::Vec3f p[3] = {toF(a), toF(b), vg::hyp::make3(NAN, 0.f, 1.f)}, q[3] = {toF(a), toF(b), toF(c)};
+    EXPECT_NE(vg::hyp::solveTripleRotation(p, q, opt, &out), vg::hyp::kTripleOk);
+  }
+  {  // pairwise angles change by 3 deg: no rotation maps one triangle onto the other
+    vg::hyp::TripleOptions strict = opt;
+    strict.max_angle_change = static_cast<float>(0.5 * kDeg);
+    const Vector3d c2 = Vector3d(0.0, -0.15, 1.0).normalized();
+    vg::hyp::Vec3f p[3] = {toF(a), toF(b), toF(c)}, q[3] = {toF(a), toF(b), toF(c2)};
+    EXPECT_EQ(vg::hyp::solveTripleRotation(p, q, strict, &out), vg::hyp::kTripleInconsistent);
+  }
+}
+
+TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {
+  for (uint32_t n : {3u, 4u, 10u, 1000u}) {
+    std::set<uint32_t> seen;
+    for (uint32_t h = 0; h < 3000; ++h) {
+      uint32_t a[3], b[3];
+      vg::hyp::drawTriple(42, h, n, a);
+      vg::hyp::drawTriple(42, h, n, b);
+      for (int k = 0; k < 3; ++k) {
+        ASSERT_LT(a[k], n);
+        ASSERT_EQ(a[k], b[k]);
+        seen.insert(a[k]);
+      }
+      ASSERT_NE(a[0], a[1]);
+      ASSERT_NE(a[0], a[2]);
+      ASSERT_NE(a[1], a[2]);
+    }
+    EXPECT_EQ(seen.size(), n) << "every index is drawn eventually";
+  }
+  uint32_t a[3], b[3];
+  vg::hyp::drawTriple(1, 7, 1000, a);
+  vg::hyp::drawTriple(2, 7, 1000, b);
+  EXPECT_FALSE(a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) << "the seed changes the triples";
+}
+
+TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
+  const Scene s = makeScene(rotationFromYpr(2 * kDeg, 0.3 * kDeg, -0.2 * kDeg), Vector3d::Zero(), 300,
+                            0.5e-3, 0.3, 5, 50, 11);
+  std::vector<vg::hyp::Vec3f> p, c;
+  for (size_t i = 0; i < s.current.size(); ++i) {
+    p.push_back(toF(s.previous[i]));
+    c.push_back(toF(s.current[i]));
+  }
+  vg::VoteRequest req;
+  req.prev = p.data();
+  req.cur = c.data();
+  req.matches = static_cast<uint32_t>(p.size());
+  req.hypotheses = 1000;
+  req.seed = 9;
+  req.triple = defaultTripleOptions(true);
+  req.grid.kind = vg::hyp::kVoteYaw;
+  req.grid.bin_width = static_cast<float>(0.1 * kDeg);
+  req.grid.bins = 300;
+  req.keep_records = true;
+  auto voter = vg::createCpuVoter();
+  vg::VoteResult r1, r2;
+  voter->vote(req, &r1);
+  voter->vote(req, &r2);
+  EXPECT_EQ(r1.histogram, r2.histogram);
+  uint32_t total = r1.accepted;
+  for (uint32_t k : r1.rejected) total += k;
+  EXPECT_EQ(total, req.hypotheses);
+  ASSERT_GE(r1.winner, 0);
+  EXPECT_NEAR(vg::hyp::binCentre(r1.winner, 0.f, req.grid), 2 * kDeg, 0.1 * kDeg);
+  req.matches = 2;
+  EXPECT_THROW(voter->vote(req, &r1), std::invalid_argument);
+}
+
+TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {
+  const double yaw = -2.3 * kDeg;
+  const Scene s = makeScene(rotationFromYpr(yaw, 0.2 * kDeg, 0.1 * kDeg), Vector3d::Zero(), 600,
+                            0.7e-3, 0.6, 5, 80, 21);
+  auto est = vg::createRotationEstimator(cpuSettings("paper"));
+  const vg::RotationResult r = est->estimate(s.previous, s.current);
+  ASSERT_TRUE(r.valid) << r.error;
+  EXPECT_NEAR(r.yaw, yaw, 0.15 * kDeg);
+  EXPECT_EQ(r.hypotheses_drawn, 2000);
+  EXPECT_GT(r.winning_votes, 5);
+  EXPECT_EQ(r.backend, "cpu");
+}
+
+TEST(VoteMethod, FullRotationWithSixtyPercentOutliers) {
+  const Matrix3d R = rotationFromYpr(-2.3 * kDeg, 0.8 * kDeg, -0.6 * kDeg);
+  const Scene s = makeScene(R, Vector3d::Zero(), 600, 0.7e-3, 0.6, 5, 80, 22);
+  auto est = vg::createRotationEstimator(cpuSettings("vote"));
+  const vg::RotationResult r = est->estimate(s.previous, s.current);
+  ASSERT_TRUE(r.valid) << r.error;
+  EXPECT_LT(vg::rotationAngleBetween(r.rotation, R), 0.02 * kDeg);
+  EXPECT_TRUE(r.pure_rotation);
+  int true_inliers = 0;
+  for (bool b : s.inlier) true_inliers += b;
+  EXPECT_NEAR(r.inliers, true_inliers, 0.1 * true_inliers);
+}
+
+TEST(VoteMethod, ForwardTranslationWithNearStructure) {
+  // A car driving 1 m forward past points 3-30 m away while turning: the regime where the paper's
+  // rotation-only voting is biased by parallax.
+  const Matrix3d R = rotationFromYpr(1.5 * kDeg, 0.1 * kDeg, 0.05 * kDeg);
+  const Vector3d t(0.05, 0.0, 1.0);
+  for (double far : {30.0, 150.0}) {
+    const Scene s = makeScene(R, t, 800, 0.7e-3, 0.3, 3, far, 23);
+    auto est = vg::createRotationEstimator(cpuSettings("vote"));
+    const vg::RotationResult r = est->estimate(s.previous, s.current);
+    ASSERT_TRUE(r.valid) << r.error;
+    const double error = vg::rotationAngleBetween(r.rotation, R);
+    const double predicted_sigma = std::sqrt(r.covariance.trace());
+    RecordProperty(far < 100 ? "near_only_error_deg" : "with_far_error_deg", std::to_string(error / kDeg));
+    // Only near structure: forward motion makes yaw and lateral translation nearly ambiguous and a
+    // few wrong matches near the epipole pass any gate, so the bound is looser there.
+    EXPECT_LT(error, (far < 100 ? 0.1 : 0.03) * kDeg) << "points 3.." << far << " m";
+    if (far > 100) EXPECT_LT(error, 4.0 * predicted_sigma) << "covariance too optimistic";
+    EXPECT_FALSE(r.pure_rotation);
+  }
+}
+
+TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
+  const Matrix3d R = rotationFromYpr(1 * kDeg, 0.5 * kDeg, 0.2 * kDeg);
+  double trace_low = 0, trace_high = 0;
+  for (double noise : {0.3e-3, 2e-3}) {
+    const Scene s = makeScene(R, Vector3d::Zero(), 500, noise, 0.2, 5, 50, 24);
+    vg::EstimatorSettings settings = cpuSettings("vote");
+    settings.inlier_threshold_deg = 0.5;
+    auto est = vg::createRotationEstimator(settings);
+    const vg::RotationResult r = est->estimate(s.previous, s.current);
+    ASSERT_TRUE(r.valid) << r.error;
+    Eigen::SelfAdjointEigenSolver<Matrix3d> eig(0.5 * (r.covariance + r.covariance.transpose()));
+    EXPECT_GT(eig.eigenvalues().minCoeff(), 0.0);
+    (noise < 1e-3 ? trace_low : trace_high) = r.covariance.trace();
+  }
+  EXPECT_GT(trace_high, 4.0 * trace_low);
+}
+
+TEST(VoteMethod, WrongPriorFallsBackToTheWideWindow) {
+  const Matrix3d R = rotationFromYpr(12 * kDeg, 0.0, 0.0);
+  const Scene s = makeScene(R, Vector3d::Zero(), 400, 0.5e-3, 0.2, 5, 50, 25);
+  auto est = vg::createRotationEstimator(cpuSettings("vote"));
+  vg::RotationPrior prior;
+  prior.valid = true;
+  prior.rotation_vector = Vector3d(0.0, -5 * kDeg, 0.0);
+  const vg::RotationResult r = est->estimate(s.previous, s.current, prior);
+  ASSERT_TRUE(r.valid) << r.error;
+  EXPECT_LT(vg::rotationAngleBetween(r.rotation, R), 0.05 * kDeg);
+}
+
+TEST(Estimator, BadInputGivesClearInvalidResult) {
+  auto est = vg::createRotationEstimator(cpuSettings("vote"));
+  std::vector<Vector3d> two = {Vector3d::UnitZ(), Vector3d(0.1, 0, 1).normalized()};
+  vg::RotationResult r = est->estimate(two, two);
+  EXPECT_FALSE(r.valid);
+  EXPECT_NE(r.error.find("too few matches"), std::string::npos) << r.error;
+  EXPECT_TRUE(r.rotation.isIdentity());
+
+  std::vector<Vector3d> a(20, Vector3d::UnitZ()), b(19, Vector3d::UnitZ());
+  r = est->estimate(a, b);
+  EXPECT_FALSE(r.valid);
+  EXPECT_NE(r.error.find("differ in size"), std::string::npos) << r.error;
+
+  const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 50, 0.0, 0.0, 5, 50, 26);
+  std::vector<Vector3d> bad = s.current;
+  bad[7] = Vector3d(NAN, 0.0, 1.0);
+  r = est->estimate(s.previous, bad);
+  EXPECT_FALSE(r.valid);
+  EXPECT_NE(r.error.find("not finite"), std::string::npos) << r.error;
+  bad[7] = Vector3d(300.0, 200.0, 1.0);  // pixels passed instead of bearings
+  r = est->estimate(s.previous, bad);
+  EXPECT_FALSE(r.valid);
+  EXPECT_NE(r.error.find("unit vector"), std::string::npos) << r.error;
+
+  // All-identical matches: every triple is degenerate, nothing votes.
+  r = est->estimate(a, a);
+  EXPECT_FALSE(r.valid);
+  EXPECT_FALSE(r.error.empty());
+}
+
+TEST(Estimator, SettingsAndFactoryErrors) {
+  vg::EstimatorSettings s = cpuSettings("vote");
+  s.method = "magic";
+  EXPECT_NE(vg::validateSettings(s), "");
+  EXPECT_THROW(vg::createRotationEstimator(s), std::invalid_argument);
+  s = cpuSettings("vote");
+  s.backend = "tpu";
+  EXPECT_THROW(vg::createRotationEstimator(s), std::invalid_argument);
+  s = cpuSettings("paper");
+  s.yaw_bin_deg = 0.0;
+  EXPECT_NE(vg::validateSettings(s).find("yaw_bin_deg"), std::string::npos);
+  s = cpuSettings("vote");
+  s.rotation_bin_deg = 0.01;
+  EXPECT_NE(vg::validateSettings(s).find("too fine"), std::string::npos);
+}
+
+TEST(Estimator, CudaRequestFallsBackToCpuWithOneWarning) {
+  vg::EstimatorSettings s = cpuSettings("vote");
+  s.backend = "cuda";
+  std::vector<std::string> warnings;
+  auto est = vg::createRotationEstimator(s, [&](const std::string& w) { warnings.push_back(w); });
+  if (est->backendName() == "cuda") GTEST_SKIP() << "a CUDA device works here: no fallback to test";
+  EXPECT_EQ(est->backendName(), "cpu");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("CPU"), std::string::npos) << warnings[0];
+}
+
+TEST(Estimator, SameSeedIsReproducible) {
+  const Scene s = makeScene(rotationFromYpr(1 * kDeg, 0, 0), Vector3d(0, 0, 1), 400, 1e-3, 0.3, 3, 40, 27);
+  auto a = vg::createRotationEstimator(cpuSettings("vote"));
+  auto b = vg::createRotationEstimator(cpuSettings("vote"));
+  const vg::RotationResult ra = a->estimate(s.previous, s.current);
+  const vg::RotationResult rb = b->estimate(s.previous, s.current);
+  EXPECT_TRUE(ra.rotation.isApprox(rb.rotation, 1e-12));
+  EXPECT_EQ(ra.winning_votes, rb.winning_votes);
+}
+
+TEST(Angles, YawPitchRollConvention) {
+  const Vector3d ypr = vg::yawPitchRoll(rotationFromYpr(0.3, -0.2, 0.1));
+  EXPECT_NEAR(ypr[0], 0.3, 1e-12);
+  EXPECT_NEAR(ypr[1], -0.2, 1e-12);
+  EXPECT_NEAR(ypr[2], 0.1, 1e-12);
+  // A right turn of a forward camera: the new forward axis points to the right (+x) of the old.
+  const Matrix3d right_turn = rotationFromYpr(0.2, 0, 0);
+  EXPECT_GT((right_turn * Vector3d::UnitZ()).x(), 0.0);
+}
