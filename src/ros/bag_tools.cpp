@@ -1,0 +1,395 @@
+#include "bag_tools.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+#include <boost/make_shared.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/image_encodings.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include "ros_conversions.h"
+#include "visual_gyro/rotation_estimator.h"
+
+namespace visual_gyro {
+namespace bag_tools {
+
+namespace conv = ros_conversions;
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+ros::Time toRosTime(double seconds) {
+  ros::Time t;
+  t.fromSec(seconds);
+  return t;
+}
+
+/// Connection header of a latched topic (rosbag play re-publishes it latched, as /tf_static needs).
+template <typename M>
+boost::shared_ptr<ros::M_string> latchedHeader(const std::string& topic) {
+  auto header = boost::make_shared<ros::M_string>();
+  (*header)["topic"] = topic;
+  (*header)["type"] = ros::message_traits::datatype<M>();
+  (*header)["md5sum"] = ros::message_traits::md5sum<M>();
+  (*header)["message_definition"] = ros::message_traits::definition<M>();
+  (*header)["callerid"] = "/make_bag";
+  (*header)["latching"] = "1";
+  return header;
+}
+
+Eigen::Matrix3d expMap(const Eigen::Vector3d& v) {
+  const double angle = v.norm();
+  if (angle < 1e-15) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
+}
+
+double wrapDeg(double a) {
+  while (a > 180.0) a -= 360.0;
+  while (a < -180.0) a += 360.0;
+  return a;
+}
+
+std::string jsonNumber(double v, int precision = 4) {
+  if (!std::isfinite(v)) return "null";
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(precision) << v;
+  return s.str();
+}
+
+std::string jsonString(const std::string& v) {
+  std::string out = "\"";
+  for (char c : v) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+}  // namespace
+
+BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& bag_path,
+                                 const BagWriteOptions& options) {
+  const BagTopics& topics = options.topics;
+  size_t count = sequence.image_paths.size();
+  if (options.max_frames > 0) count = std::min(count, static_cast<size_t>(options.max_frames));
+  if (count == 0) throw std::runtime_error("sequence '" + sequence.name + "' has no images");
+  if (sequence.stamps.size() < count)
+    throw std::runtime_error("sequence '" + sequence.name + "' has fewer stamps than images");
+
+  // KITTI stamps are relative to the start of the sequence (or implied by 10 Hz).
+  const bool relative = sequence.layout != "euroc";
+  const double offset = relative ? options.kitti_start - sequence.stamps[0] : 0.0;
+  auto stampOf = [&](double t) { return t + offset; };
+
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Write);
+  } catch (const rosbag::BagException& e) {
+    throw std::runtime_error("cannot write bag '" + bag_path + "': " + e.what());
+  }
+  BagWriteSummary summary;
+  summary.first_stamp = stampOf(sequence.stamps[0]);
+  summary.last_stamp = stampOf(sequence.stamps[count - 1]);
+
+  sensor_msgs::CameraInfo info = conv::cameraInfoFromModel(sequence.camera);
+  info.header.frame_id = topics.camera_frame;
+
+  // Gyro samples interleaved with the images in time order (rosbag play publishes by bag time).
+  size_t gyro_index = 0;
+  const double gyro_end = summary.last_stamp - offset;
+  auto writeGyroUntil = [&](double t_limit) {
+    for (; gyro_index < sequence.gyro.size() && sequence.gyro[gyro_index].stamp <= t_limit; ++gyro_index) {
+      const GyroSample& g = sequence.gyro[gyro_index];
+      sensor_msgs::Imu imu;
+      imu.header.stamp = toRosTime(stampOf(g.stamp));
+      imu.header.frame_id = topics.imu_frame;
+      imu.orientation.w = 1.0;
+      imu.orientation_covariance[0] = -1.0;
+      imu.linear_acceleration_covariance[0] = -1.0;
+      imu.angular_velocity.x = g.angular_velocity.x();
+      imu.angular_velocity.y = g.angular_velocity.y();
+      imu.angular_velocity.z = g.angular_velocity.z();
+      if (imu.header.stamp.toSec() > 0.0) {
+        bag.write(topics.gyro, imu.header.stamp, imu);
+        ++summary.gyro;
+      }
+    }
+  };
+
+  if (sequence.hasGyro()) {
+    // The camera's rotation in the gyro frame, latched, first in the bag.
+    tf2_msgs::TFMessage tf;
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = toRosTime(summary.first_stamp);
+    t.header.frame_id = topics.imu_frame;
+    t.child_frame_id = topics.camera_frame;
+    t.transform.rotation = conv::toMsg(Eigen::Quaterniond(sequence.body_from_camera));
+    tf.transforms.push_back(t);
+    bag.write("/tf_static", toRosTime(summary.first_stamp), tf, latchedHeader<tf2_msgs::TFMessage>("/tf_static"));
+  }
+
+  for (size_t k = 0; k < count; ++k) {
+    const double t_seq = sequence.stamps[k];
+    const ros::Time stamp = toRosTime(stampOf(t_seq));
+    if (!(stamp.toSec() > 0.0)) throw std::runtime_error("stamp of image " + std::to_string(k) + " is not positive");
+    writeGyroUntil(std::min(t_seq, gyro_end));
+
+    cv::Mat gray = cv::imread(sequence.image_paths[k], cv::IMREAD_GRAYSCALE);
+    if (gray.empty()) throw std::runtime_error("cannot read image '" + sequence.image_paths[k] + "'");
+    if (gray.cols != sequence.camera.width() || gray.rows != sequence.camera.height()) {
+      throw std::runtime_error("image '" + sequence.image_paths[k] + "' is " + std::to_string(gray.cols) + "x" +
+                               std::to_string(gray.rows) + ", the calibration says " +
+                               std::to_string(sequence.camera.width()) + "x" +
+                               std::to_string(sequence.camera.height()));
+    }
+    if (sequence.hasPoses() && k < sequence.orientations.size()) {
+      geometry_msgs::PoseStamped pose;
+      pose.header.stamp = stamp;
+      pose.header.frame_id = topics.world_frame;
+      pose.pose.orientation = conv::toMsg(Eigen::Quaterniond(sequence.orientations[k]));
+      if (k < sequence.positions.size()) {
+        pose.pose.position.x = sequence.positions[k].x();
+        pose.pose.position.y = sequence.positions[k].y();
+        pose.pose.position.z = sequence.positions[k].z();
+      }
+      bag.write(topics.ground_truth, stamp, pose);
+      ++summary.poses;
+    }
+    sensor_msgs::Image image;
+    image.header.stamp = stamp;
+    image.header.frame_id = topics.camera_frame;
+    image.header.seq = static_cast<uint32_t>(k);
+    image.height = static_cast<uint32_t>(gray.rows);
+    image.width = static_cast<uint32_t>(gray.cols);
+    image.encoding = sensor_msgs::image_encodings::MONO8;
+    image.is_bigendian = 0;
+    image.step = static_cast<uint32_t>(gray.cols);
+    image.data.resize(static_cast<size_t>(gray.rows) * gray.cols);
+    for (int r = 0; r < gray.rows; ++r) std::copy(gray.ptr<uint8_t>(r), gray.ptr<uint8_t>(r) + gray.cols, &image.data[r * gray.cols]);
+    info.header.stamp = stamp;
+    info.header.seq = image.header.seq;
+    bag.write(topics.camera_info, stamp, info);
+    bag.write(topics.image, stamp, image);
+    ++summary.images;
+  }
+  writeGyroUntil(gyro_end);
+  bag.close();
+  return summary;
+}
+
+BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics) {
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& e) {
+    throw std::runtime_error("cannot read bag '" + bag_path + "': " + e.what());
+  }
+  BagContents contents;
+  std::map<ros::Time, sensor_msgs::CameraInfoConstPtr> infos;
+  std::vector<sensor_msgs::ImageConstPtr> images;
+  rosbag::View view(bag, rosbag::TopicQuery({topics.image, topics.camera_info, topics.gyro,
+                                             topics.ground_truth, "/tf_static"}));
+  for (const rosbag::MessageInstance& m : view) {
+    if (m.getTopic() == topics.image) {
+      if (auto p = m.instantiate<sensor_msgs::Image>()) images.push_back(p);
+    } else if (m.getTopic() == topics.camera_info) {
+      if (auto p = m.instantiate<sensor_msgs::CameraInfo>()) infos[p->header.stamp] = p;
+    } else if (m.getTopic() == topics.gyro) {
+      if (auto p = m.instantiate<sensor_msgs::Imu>()) contents.gyro.push_back(p);
+    } else if (m.getTopic() == topics.ground_truth) {
+      if (auto p = m.instantiate<geometry_msgs::PoseStamped>()) contents.poses.push_back(p);
+    } else if (m.getTopic() == "/tf_static") {
+      if (auto p = m.instantiate<tf2_msgs::TFMessage>())
+        contents.static_transforms.insert(contents.static_transforms.end(), p->transforms.begin(), p->transforms.end());
+    }
+  }
+  bag.close();
+  for (const auto& image : images) {
+    auto it = infos.find(image->header.stamp);
+    if (it != infos.end()) contents.frames.push_back({image, it->second});
+  }
+  if (contents.frames.empty()) {
+    throw std::runtime_error("bag '" + bag_path + "' has no images on " + topics.image + " with a camera_info on " +
+                             topics.camera_info);
+  }
+  return contents;
+}
+
+namespace {
+
+/// Ground truth lookups over a BagContents.
+class Truth {
+ public:
+  explicit Truth(const BagContents& c) {
+    for (const auto& p : c.poses) poses_[p->header.stamp.toSec()] = conv::fromMsg(p->pose.orientation).toRotationMatrix();
+    for (const auto& g : c.gyro) {
+      gyro_.emplace_back(g->header.stamp.toSec(),
+                         Eigen::Vector3d(g->angular_velocity.x, g->angular_velocity.y, g->angular_velocity.z));
+    }
+    std::sort(gyro_.begin(), gyro_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    // Rotation of the camera in the gyro frame (imu <- camera); the gyro in camera axes is R^T w.
+    for (const auto& t : c.static_transforms) {
+      if (!c.frames.empty() && t.child_frame_id == c.frames.front().image->header.frame_id) {
+        camera_from_gyro_ = conv::fromMsg(t.transform.rotation).toRotationMatrix().transpose();
+      }
+    }
+  }
+  bool hasGyro() const { return gyro_.size() >= 2; }
+
+  bool pose(double t, Eigen::Matrix3d* r) const {
+    auto it = poses_.lower_bound(t - 1e-3);
+    if (it == poses_.end() || std::abs(it->first - t) > 1e-3) return false;
+    *r = it->second;
+    return true;
+  }
+
+  /// Gyro rate at t, linearly interpolated, in camera axes.
+  Eigen::Vector3d rateAt(double t) const {
+    auto it = std::lower_bound(gyro_.begin(), gyro_.end(), t, [](const auto& a, double v) { return a.first < v; });
+    if (it == gyro_.begin()) return camera_from_gyro_ * it->second;
+    if (it == gyro_.end()) return camera_from_gyro_ * gyro_.back().second;
+    const auto& b = *it;
+    const auto& a = *(it - 1);
+    const double w = (t - a.first) / std::max(b.first - a.first, 1e-12);
+    return camera_from_gyro_ * ((1.0 - w) * a.second + w * b.second);
+  }
+
+  /// Rotation R_{t0}^T R_{t1} from the gyro (trapezoid per sample interval) and the mean rate.
+  bool gyroRotation(double t0, double t1, Eigen::Matrix3d* r, Eigen::Vector3d* mean_rate) const {
+    if (!hasGyro() || t0 < gyro_.front().first || t1 > gyro_.back().first || !(t1 > t0)) return false;
+    std::vector<double> times{t0};
+    for (const auto& g : gyro_)
+      if (g.first > t0 && g.first < t1) times.push_back(g.first);
+    times.push_back(t1);
+    Eigen::Matrix3d acc = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i + 1 < times.size(); ++i) {
+      const double dt = times[i + 1] - times[i];
+      const Eigen::Vector3d w = 0.5 * (rateAt(times[i]) + rateAt(times[i + 1]));
+      acc = acc * expMap(w * dt);
+      sum += w * dt;
+    }
+    *r = acc;
+    *mean_rate = sum / (t1 - t0);
+    return true;
+  }
+
+ private:
+  std::map<double, Eigen::Matrix3d> poses_;
+  std::vector<std::pair<double, Eigen::Vector3d>> gyro_;
+  Eigen::Matrix3d camera_from_gyro_ = Eigen::Matrix3d::Identity();
+};
+
+}  // namespace
+
+OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& estimates, int imu_count,
+                              const BagContents& truth_bag, const std::string& dataset) {
+  OutputSummary s;
+  s.dataset = dataset;
+  s.frames = static_cast<int>(estimates.size());
+  s.imu_published = imu_count;
+  const Truth truth(truth_bag);
+  double rot_sq = 0, rot_max = 0, yaw_sq = 0, yaw_max = 0, rate_sum = 0, rate_err_sq = 0;
+  int rate_compared = 0;
+  double detect = 0, describe = 0, match = 0, estimate = 0, total = 0, latency = 0;
+  for (const auto& e : estimates) {
+    if (s.method.empty()) s.method = e.method;
+    if (s.backend.empty()) s.backend = e.backend;
+    if (e.valid) ++s.valid_frames;
+    const Eigen::Vector3d omega(e.angular_velocity.x, e.angular_velocity.y, e.angular_velocity.z);
+    rate_sum += omega.norm() * kRadToDeg;
+    detect += e.detect_ms;
+    describe += e.describe_ms;
+    match += e.match_ms;
+    estimate += e.estimate_ms;
+    total += e.total_ms;
+    latency += e.latency_ms;
+
+    const double t0 = e.previous_stamp.toSec();
+    const double t1 = t0 + e.dt;  // the current image's stamp, also when outputs use the midpoint
+    const Eigen::Matrix3d r_est = conv::fromMsg(e.rotation).toRotationMatrix();
+    Eigen::Matrix3d r0, r1, r_true, r_gyro;
+    Eigen::Vector3d mean_rate;
+    bool have_true = false;
+    // The poses are the reference for the rotation when the bag has them; the gyro for the rate.
+    if (truth.pose(t0, &r0) && truth.pose(t1, &r1)) {
+      r_true = r0.transpose() * r1;
+      have_true = true;
+    }
+    if (truth.gyroRotation(t0, t1, &r_gyro, &mean_rate)) {
+      rate_err_sq += (omega - mean_rate).squaredNorm() * kRadToDeg * kRadToDeg;
+      ++rate_compared;
+      if (!have_true) r_true = r_gyro;
+      have_true = true;
+    }
+    if (!have_true) continue;
+    const double rot_err = rotationAngleBetween(r_est, r_true) * kRadToDeg;
+    const double yaw_err = std::abs(wrapDeg((yawPitchRoll(r_est)[0] - yawPitchRoll(r_true)[0]) * kRadToDeg));
+    rot_sq += rot_err * rot_err;
+    rot_max = std::max(rot_max, rot_err);
+    yaw_sq += yaw_err * yaw_err;
+    yaw_max = std::max(yaw_max, yaw_err);
+    ++s.compared;
+  }
+  if (s.frames > 0) {
+    const double n = s.frames;
+    s.mean_rate_dps = rate_sum / n;
+    s.detect_ms = detect / n;
+    s.describe_ms = describe / n;
+    s.match_ms = match / n;
+    s.estimate_ms = estimate / n;
+    s.total_ms = total / n;
+    s.latency_ms = latency / n;
+  }
+  if (s.compared > 0) {
+    s.rot_rmse_deg = std::sqrt(rot_sq / s.compared);
+    s.rot_max_deg = rot_max;
+    s.yaw_rmse_deg = std::sqrt(yaw_sq / s.compared);
+    s.yaw_max_deg = yaw_max;
+  }
+  if (rate_compared > 0) s.rate_rmse_dps = std::sqrt(rate_err_sq / rate_compared);
+  return s;
+}
+
+std::string OutputSummary::json() const {
+  std::ostringstream j;
+  j << "{\"dataset\": " << jsonString(dataset) << ", \"method\": " << jsonString(method)
+    << ", \"frames\": " << frames << ", \"rot_rmse_deg\": " << jsonNumber(rot_rmse_deg)
+    << ", \"rot_max_deg\": " << jsonNumber(rot_max_deg) << ", \"yaw_rmse_deg\": " << jsonNumber(yaw_rmse_deg)
+    << ", \"yaw_max_deg\": " << jsonNumber(yaw_max_deg) << ", \"mean_rate_dps\": " << jsonNumber(mean_rate_dps)
+    << ", \"rate_rmse_dps\": " << jsonNumber(rate_rmse_dps) << ", \"ms_per_frame\": {\"detect\": "
+    << jsonNumber(detect_ms, 3) << ", \"describe\": " << jsonNumber(describe_ms, 3)
+    << ", \"match\": " << jsonNumber(match_ms, 3) << ", \"estimate\": " << jsonNumber(estimate_ms, 3)
+    << ", \"total\": " << jsonNumber(total_ms, 3) << "}, \"imu_published\": " << imu_published
+    << ", \"latency_ms\": " << jsonNumber(latency_ms, 3) << ", \"valid_frames\": " << valid_frames
+    << ", \"backend\": " << jsonString(backend) << ", \"source\": \"ros\"}";
+  return j.str();
+}
+
+std::string OutputSummary::text() const {
+  std::ostringstream t;
+  auto num = [](double v, int p = 3) { return std::isfinite(v) ? jsonNumber(v, p) : std::string("n/a"); };
+  t << "dataset " << dataset << ", method " << method << ", backend " << backend << " (through ROS)\n"
+    << "  RotationEstimate messages: " << frames << " (" << valid_frames << " valid, " << compared
+    << " with ground truth); Imu messages: " << imu_published << "\n"
+    << "  rotation error per frame: RMSE " << num(rot_rmse_deg) << " deg, max " << num(rot_max_deg) << " deg\n"
+    << "  yaw error per frame:      RMSE " << num(yaw_rmse_deg) << " deg, max " << num(yaw_max_deg) << " deg\n"
+    << "  mean rate " << num(mean_rate_dps, 2) << " deg/s, rate RMSE vs gyro " << num(rate_rmse_dps) << " deg/s\n"
+    << "  time per frame: detect " << num(detect_ms, 2) << " ms, describe " << num(describe_ms, 2) << " ms, match "
+    << num(match_ms, 2) << " ms, estimate " << num(estimate_ms, 2) << " ms, total " << num(total_ms, 2)
+    << " ms; latency image callback -> publish " << num(latency_ms, 2) << " ms";
+  return t.str();
+}
+
+}  // namespace bag_tools
+}  // namespace visual_gyro

@@ -1,0 +1,102 @@
+// Rosbags of image sequences (writing from KITTI/EuRoC/rendered folders, reading for replay) and
+// the evaluation of what the nodelet published against the bag's ground truth.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+
+#include "visual_gyro/RotationEstimate.h"
+#include "visual_gyro/sequence.h"
+
+namespace visual_gyro {
+namespace bag_tools {
+
+/// Topic and frame names of a sequence bag.
+struct BagTopics {
+  std::string image = "/camera/image_raw";           ///< sensor_msgs/Image, mono8
+  std::string camera_info = "/camera/camera_info";   ///< sensor_msgs/CameraInfo, same stamps
+  std::string gyro = "/imu/data";                    ///< sensor_msgs/Imu (gyro only), when present
+  std::string ground_truth = "/ground_truth/pose";   ///< geometry_msgs/PoseStamped, when present
+  std::string camera_frame = "camera_optical";       ///< frame_id of images (optical: x right, y down, z fwd)
+  std::string imu_frame = "imu";                     ///< frame_id of the gyro (EuRoC body frame)
+  std::string world_frame = "world";                 ///< frame_id of ground-truth poses (first camera)
+};
+
+/// Options of writeSequenceBag.
+struct BagWriteOptions {
+  BagTopics topics;
+  /// KITTI-layout stamps (relative, from times.txt or 10 Hz) are shifted to start here [s]: ROS
+  /// stamps must be positive. EuRoC stamps are absolute and kept.
+  double kitti_start = 1.0;
+  int max_frames = 0;  ///< 0 = all
+};
+
+/// What was written.
+struct BagWriteSummary {
+  int images = 0, gyro = 0, poses = 0;
+  double first_stamp = 0.0, last_stamp = 0.0;
+};
+
+/// Writes the sequence as a bag: per image an Image (mono8, the recorded stamp) and a CameraInfo
+/// (with the real distortion: plumb_bob for radial-tangential), the ground-truth pose of each
+/// image as PoseStamped (orientation = camera -> first camera, KITTI poses.txt convention) when the
+/// sequence has poses, every gyro sample as Imu (body frame; no orientation/acceleration, marked
+/// -1) when it has a gyro, and then a latched /tf_static with the camera's rotation in the gyro
+/// frame (EuRoC T_BS). Throws std::runtime_error when an image cannot be read or the bag written.
+BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& bag_path,
+                                 const BagWriteOptions& options);
+
+/// An image with its camera_info (same stamp).
+struct BagFrame {
+  sensor_msgs::ImageConstPtr image;
+  sensor_msgs::CameraInfoConstPtr info;
+};
+
+/// The messages of a sequence bag, in time order.
+struct BagContents {
+  std::vector<BagFrame> frames;
+  std::vector<geometry_msgs::PoseStampedConstPtr> poses;
+  std::vector<sensor_msgs::ImuConstPtr> gyro;
+  std::vector<geometry_msgs::TransformStamped> static_transforms;
+};
+
+/// Reads a sequence bag (topics as named in `topics`). Images without a camera_info of the same
+/// stamp are dropped. Throws std::runtime_error when the bag cannot be read or holds no images.
+BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics = BagTopics());
+
+/// Errors of the published estimates against the bag's ground truth (issue 2's JSON keys).
+struct OutputSummary {
+  std::string dataset, method, backend;
+  int frames = 0;          ///< RotationEstimate messages
+  int valid_frames = 0;    ///< ... with valid = true
+  int compared = 0;        ///< ... with ground truth for both stamps
+  int imu_published = 0;   ///< Imu messages
+  double rot_rmse_deg = NAN, rot_max_deg = NAN, yaw_rmse_deg = NAN, yaw_max_deg = NAN;
+  double mean_rate_dps = NAN, rate_rmse_dps = NAN;  ///< rate RMSE: against the gyro, else NaN
+  double detect_ms = NAN, describe_ms = NAN, match_ms = NAN, estimate_ms = NAN, total_ms = NAN;
+  double latency_ms = NAN;  ///< mean image-callback-to-publish wall time
+
+  /// One JSON object on one line (NaN -> null).
+  std::string json() const;
+  /// A few readable lines.
+  std::string text() const;
+};
+
+/// Compares estimates (rotation in the camera optical frame, as published without ~output_frame)
+/// with the truth in `truth`: per message R_true = R_gt(prev)^T R_gt(cur) from the poses, or, when
+/// there are none, the gyro integrated between the two stamps and rotated into the camera frame with
+/// the /tf_static rotation. Rotation error = angle of R_est^T R_true; yaw error = difference of the
+/// yaws (about the camera's y axis, R = Ry Rx Rz).
+OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& estimates, int imu_count,
+                              const BagContents& truth, const std::string& dataset);
+
+}  // namespace bag_tools
+}  // namespace visual_gyro

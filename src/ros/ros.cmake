@@ -1,0 +1,47 @@
+# ROS layer of visual_gyro (included from the top-level CMakeLists.txt).
+#   visual_gyro_nodelet   the nodelet plugin (nodelet_plugins.xml)
+#   visual_gyro_node      standalone node loading the same plugin in-process (nodelet::Loader)
+#   make_bag              sequence folder -> rosbag (Image + CameraInfo, gyro, ground truth)
+#   play_frames           frame-by-frame replay of such a bag through a running node
+#   summarize_outputs     errors of the recorded outputs against the bag's ground truth (demo JSON)
+
+set(VISUAL_GYRO_ROS_INCLUDES
+  ${CMAKE_CURRENT_SOURCE_DIR}/src/ros
+  ${CATKIN_DEVEL_PREFIX}/${CATKIN_GLOBAL_INCLUDE_DESTINATION}  # generated messages and config
+  ${catkin_INCLUDE_DIRS})
+
+add_library(visual_gyro_nodelet
+  src/ros/visual_gyro_nodelet.cpp
+  src/ros/ros_conversions.cpp)
+target_include_directories(visual_gyro_nodelet PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
+target_link_libraries(visual_gyro_nodelet visual_gyro_core ${catkin_LIBRARIES})
+add_dependencies(visual_gyro_nodelet ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
+target_compile_options(visual_gyro_nodelet PRIVATE -Wall -Wextra)
+
+add_executable(visual_gyro_node src/ros/visual_gyro_node.cpp)
+target_include_directories(visual_gyro_node PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
+target_link_libraries(visual_gyro_node ${catkin_LIBRARIES})
+# The node loads the plugin at run time; build them together.
+add_dependencies(visual_gyro_node visual_gyro_nodelet)
+
+# Bag writing/reading, frame-by-frame replay and output evaluation, shared by the commands and the
+# ROS tests.
+add_library(visual_gyro_ros_tools STATIC
+  src/ros/bag_tools.cpp
+  src/ros/frame_player.cpp
+  src/ros/ros_conversions.cpp)
+target_include_directories(visual_gyro_ros_tools PUBLIC ${VISUAL_GYRO_ROS_INCLUDES})
+target_link_libraries(visual_gyro_ros_tools PUBLIC visual_gyro_core ${catkin_LIBRARIES})
+add_dependencies(visual_gyro_ros_tools ${PROJECT_NAME}_generate_messages_cpp)
+target_compile_options(visual_gyro_ros_tools PRIVATE -Wall -Wextra)
+
+foreach(tool make_bag play_frames summarize_outputs)
+  add_executable(${tool} src/ros/${tool}.cpp)
+  target_link_libraries(${tool} visual_gyro_ros_tools)
+endforeach()
+
+install(TARGETS visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs
+  ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
+  LIBRARY DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
+  RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+install(FILES nodelet_plugins.xml DESTINATION ${CATKIN_PACKAGE_SHARE_DESTINATION})

@@ -1,0 +1,175 @@
+#include "ros_conversions.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+#include <sensor_msgs/distortion_models.h>
+#include <sensor_msgs/image_encodings.h>
+
+namespace visual_gyro {
+namespace ros_conversions {
+
+namespace enc = sensor_msgs::image_encodings;
+
+bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model, std::string* why) {
+  double fx = info.K[0], fy = info.K[4], cx = info.K[2], cy = info.K[5];
+  if (!(fx > 0.0) || !(fy > 0.0) || !std::isfinite(fx) || !std::isfinite(fy)) {
+    *why = "camera_info has no usable calibration (K[0] = " + std::to_string(fx) +
+           ", K[4] = " + std::to_string(fy) +
+           "); calibrate the camera or set ~use_camera_info false and give ~fx, ~fy, ~cx, ~cy";
+    return false;
+  }
+  int width = static_cast<int>(info.width), height = static_cast<int>(info.height);
+  // ROI and binning describe how the published image relates to the calibrated full sensor
+  // (REP 104): shift the principal point by the ROI offset, then scale by the binning.
+  const bool has_roi = info.roi.width > 0 && info.roi.height > 0 &&
+                       (info.roi.width != info.width || info.roi.height != info.height ||
+                        info.roi.x_offset != 0 || info.roi.y_offset != 0);
+  if (has_roi) {
+    cx -= info.roi.x_offset;
+    cy -= info.roi.y_offset;
+    width = static_cast<int>(info.roi.width);
+    height = static_cast<int>(info.roi.height);
+  }
+  const double bx = info.binning_x > 1 ? info.binning_x : 1.0;
+  const double by = info.binning_y > 1 ? info.binning_y : 1.0;
+  if (bx > 1.0 || by > 1.0) {
+    fx /= bx;
+    cx = (cx + 0.5) / bx - 0.5;
+    fy /= by;
+    cy = (cy + 0.5) / by - 0.5;
+    width = static_cast<int>(width / bx);
+    height = static_cast<int>(height / by);
+  }
+
+  std::vector<double> d(info.D.begin(), info.D.end());
+  bool all_zero = true;
+  for (double v : d) all_zero = all_zero && v == 0.0;
+  DistortionModel dm = DistortionModel::kNone;
+  const std::string& name = info.distortion_model;
+  if (d.empty() || all_zero) {
+    dm = DistortionModel::kNone;
+    d.clear();
+  } else if (name == sensor_msgs::distortion_models::PLUMB_BOB) {
+    dm = DistortionModel::kPlumbBob;
+  } else if (name == sensor_msgs::distortion_models::RATIONAL_POLYNOMIAL) {
+    // k1 k2 p1 p2 k3 k4 k5 k6: plumb_bob exactly when the rational terms vanish.
+    for (size_t i = 5; i < d.size(); ++i) {
+      if (d[i] != 0.0) {
+        *why = "camera_info distortion model rational_polynomial with non-zero k4..k6 is not "
+               "supported (plumb_bob and equidistant are)";
+        return false;
+      }
+    }
+    if (d.size() > 5) d.resize(5);
+    dm = DistortionModel::kPlumbBob;
+  } else if (!parseDistortionModel(name, &dm)) {
+    *why = "camera_info distortion model '" + name +
+           "' is not supported (plumb_bob, rational_polynomial with k4..k6 = 0, equidistant)";
+    return false;
+  }
+  *model = CameraModel(fx, fy, cx, cy, width, height, dm, d);
+  return true;
+}
+
+sensor_msgs::CameraInfo cameraInfoFromModel(const CameraModel& model) {
+  sensor_msgs::CameraInfo info;
+  info.width = static_cast<uint32_t>(model.width());
+  info.height = static_cast<uint32_t>(model.height());
+  info.K = {model.fx(), 0.0, model.cx(), 0.0, model.fy(), model.cy(), 0.0, 0.0, 1.0};
+  info.R = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+  info.P = {model.fx(), 0.0, model.cx(), 0.0, 0.0, model.fy(), model.cy(), 0.0, 0.0, 0.0, 1.0, 0.0};
+  switch (model.distortionModel()) {
+    case DistortionModel::kEquidistant:
+      info.distortion_model = sensor_msgs::distortion_models::EQUIDISTANT;
+      info.D = model.distortion();
+      break;
+    case DistortionModel::kPlumbBob:
+      info.distortion_model = sensor_msgs::distortion_models::PLUMB_BOB;
+      info.D = model.distortion();
+      info.D.resize(5, 0.0);  // ROS tools expect k1 k2 p1 p2 k3
+      break;
+    default:
+      info.distortion_model = sensor_msgs::distortion_models::PLUMB_BOB;
+      info.D.assign(5, 0.0);
+      break;
+  }
+  return info;
+}
+
+bool isSupportedEncoding(const std::string& encoding) {
+  return encoding == enc::MONO8 || encoding == enc::MONO16 || encoding == enc::BGR8 ||
+         encoding == enc::RGB8 || encoding == enc::BGRA8 || encoding == enc::RGBA8;
+}
+
+cv::Mat toGray(const sensor_msgs::Image& image, int* mono16_max) {
+  const std::string& e = image.encoding;
+  if (!isSupportedEncoding(e)) {
+    throw std::invalid_argument("unsupported image encoding '" + e +
+                                "' (mono8, mono16, bgr8, rgb8, bgra8, rgba8 are)");
+  }
+  int type = CV_8UC1;
+  if (e == enc::MONO16) type = CV_16UC1;
+  else if (e == enc::BGR8 || e == enc::RGB8) type = CV_8UC3;
+  else if (e == enc::BGRA8 || e == enc::RGBA8) type = CV_8UC4;
+  const size_t row_bytes = static_cast<size_t>(image.width) * CV_ELEM_SIZE(type);
+  if (image.width == 0 || image.height == 0 || image.step < row_bytes ||
+      image.data.size() < static_cast<size_t>(image.step) * image.height) {
+    throw std::invalid_argument("malformed image: " + std::to_string(image.width) + "x" +
+                                std::to_string(image.height) + " step " +
+                                std::to_string(image.step) + " with " +
+                                std::to_string(image.data.size()) + " bytes of " + e);
+  }
+  const cv::Mat raw(static_cast<int>(image.height), static_cast<int>(image.width), type,
+                    const_cast<uint8_t*>(image.data.data()), image.step);
+  cv::Mat gray;
+  if (type == CV_8UC1) {
+    gray = raw;
+  } else if (type == CV_16UC1) {
+    cv::Mat host = raw;
+    const bool host_big_endian = (*reinterpret_cast<const uint16_t*>("\x01\x00") != 1);
+    if (static_cast<bool>(image.is_bigendian) != host_big_endian) {
+      host = raw.clone();
+      for (int r = 0; r < host.rows; ++r) {
+        auto* p = host.ptr<uint16_t>(r);
+        for (int c = 0; c < host.cols; ++c) p[c] = static_cast<uint16_t>((p[c] >> 8) | (p[c] << 8));
+      }
+    }
+    double max_value = 0.0;
+    cv::minMaxLoc(host, nullptr, &max_value);
+    *mono16_max = std::max(*mono16_max, static_cast<int>(max_value));
+    int bits = 8;
+    while (bits < 16 && (1 << bits) - 1 < *mono16_max) ++bits;
+    host.convertTo(gray, CV_8U, 255.0 / ((1 << bits) - 1));
+  } else if (e == enc::BGR8) {
+    cv::cvtColor(raw, gray, cv::COLOR_BGR2GRAY);
+  } else if (e == enc::RGB8) {
+    cv::cvtColor(raw, gray, cv::COLOR_RGB2GRAY);
+  } else if (e == enc::BGRA8) {
+    cv::cvtColor(raw, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    cv::cvtColor(raw, gray, cv::COLOR_RGBA2GRAY);
+  }
+  return gray;
+}
+
+geometry_msgs::Quaternion toMsg(const Eigen::Quaterniond& q_in) {
+  Eigen::Quaterniond q = q_in.normalized();
+  geometry_msgs::Quaternion m;
+  m.w = q.w();
+  m.x = q.x();
+  m.y = q.y();
+  m.z = q.z();
+  return m;
+}
+
+Eigen::Quaterniond fromMsg(const geometry_msgs::Quaternion& m) {
+  Eigen::Quaterniond q(m.w, m.x, m.y, m.z);
+  const double n = q.norm();
+  if (!(n > 0.0) || !std::isfinite(n)) return Eigen::Quaterniond::Identity();
+  return Eigen::Quaterniond(q.coeffs() / n);
+}
+
+}  // namespace ros_conversions
+}  // namespace visual_gyro

@@ -1,0 +1,52 @@
+// Conversions between ROS messages and the ROS-free core types of visual_gyro.
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <geometry_msgs/Quaternion.h>
+#include <opencv2/core.hpp>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+
+#include "visual_gyro/camera_model.h"
+
+namespace visual_gyro {
+namespace ros_conversions {
+
+/// Camera model from a CameraInfo: K (fx, fy, cx, cy), size, distortion model and D, with binning and
+/// ROI applied. "plumb_bob" takes 4 or 5 coefficients; "rational_polynomial" is accepted only when its
+/// rational terms (k4..k6) are zero; "equidistant" takes 4; an empty or all-zero D means no
+/// distortion. Returns false with the reason in *why when the message cannot be used (e.g. an
+/// uncalibrated camera with K = 0). The model is not validated beyond that: call validate().
+bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model, std::string* why);
+
+/// CameraInfo for a model (K, P = [K | 0], R = I, D and distortion_model as ROS names them).
+sensor_msgs::CameraInfo cameraInfoFromModel(const CameraModel& model);
+
+/// True when the encoding is one the nodelet converts to gray: mono8, mono16, bgr8, rgb8, bgra8,
+/// rgba8.
+bool isSupportedEncoding(const std::string& encoding);
+
+/// Converts an image of a supported encoding to CV_8UC1 (mono8 is shared, not copied).
+/// mono16 is scaled by 255 / (2^bits - 1), where bits is the smallest bit depth covering
+/// *mono16_max (the largest value seen so far; updated here), so 12-bit cameras are not dark and
+/// the scale stays constant from frame to frame. Throws std::invalid_argument for other encodings
+/// or a malformed image (step or size inconsistent).
+cv::Mat toGray(const sensor_msgs::Image& image, int* mono16_max);
+
+/// Row-major copy of a 3x3 matrix into a float64[9] field.
+template <typename Array>
+void toRowMajor(const Eigen::Matrix3d& m, Array* out) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = m(r, c);
+}
+
+/// geometry_msgs quaternion of an Eigen quaternion (normalised).
+geometry_msgs::Quaternion toMsg(const Eigen::Quaterniond& q);
+/// Eigen quaternion of a geometry_msgs quaternion (normalised; identity when it has zero norm).
+Eigen::Quaterniond fromMsg(const geometry_msgs::Quaternion& q);
+
+}  // namespace ros_conversions
+}  // namespace visual_gyro

@@ -1,0 +1,149 @@
+// The visual gyroscope as a ROS nodelet: camera images in, angular velocity (sensor_msgs/Imu),
+// frame-to-frame rotation (visual_gyro/RotationEstimate), integrated orientation and a yaw plot out.
+#pragma once
+
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <dynamic_reconfigure/server.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <image_transport/image_transport.h>
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/Marker.h>
+
+#include "visual_gyro/VisualGyroConfig.h"
+#include "visual_gyro/visual_gyro.h"
+
+namespace visual_gyro {
+
+/// Nodelet `visual_gyro/VisualGyroNodelet`.
+///
+/// Subscribes (lazily: only while an output has a subscriber, or ~publish_tf is on) to `image`
+/// (+ its `camera_info`, unless ~use_camera_info is false) through image_transport, queue 1, and to
+/// `ground_truth` (geometry_msgs/PoseStamped, optional, for the yaw plot). Publishes ~imu,
+/// ~rotation, ~orientation, ~yaw_plot and /diagnostics. Rotation convention: the frame-to-frame
+/// rotation R maps current-frame bearings into the previous frame (b_prev = R b_cur), in the
+/// camera's optical frame (x right, y down, z forward) or, when ~output_frame is set, rotated into
+/// that frame with the tf2 transform (R_out = T R T^T, w_out = T w). Units: rad, rad/s, s.
+class VisualGyroNodelet : public nodelet::Nodelet {
+ public:
+  VisualGyroNodelet();
+  ~VisualGyroNodelet() override;
+
+ private:
+  using Config = visual_gyro::VisualGyroConfig;
+
+  void onInit() override;
+  /// Subscribes or unsubscribes the inputs as outputs gain or lose subscribers.
+  void connectCb();
+  void cameraCb(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
+  void imageCb(const sensor_msgs::ImageConstPtr& image);
+  void groundTruthCb(const geometry_msgs::PoseStampedConstPtr& pose);
+  void reconfigureCb(Config& config, uint32_t level);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
+
+  /// One image with the camera model it was taken with; `wall_start` is when the callback began.
+  void processImage(const sensor_msgs::Image& image, const CameraModel& camera, ros::WallTime wall_start);
+  /// Camera model from the ~fx... parameters for an image of this size.
+  bool cameraFromParameters(int width, int height, CameraModel* camera, std::string* why) const;
+  /// Forgets the previous frame, the integrated orientation and the yaw plot.
+  void resetState();
+  /// Counts a skipped frame under `reason`.
+  void skip(const std::string& reason);
+  /// Rotation from the camera optical frame into ~output_frame (identity when unset). False when
+  /// the transform is not available yet.
+  bool outputRotation(const std::string& camera_frame, Eigen::Matrix3d* rotation);
+  /// Adds the yaw of the integrated orientation (and of the ground truth) to the plot and
+  /// publishes it.
+  void updateYawPlot(double stamp, const std_msgs::Header& header);
+  void addGroundTruthPoint(double stamp, const Eigen::Quaterniond& orientation);
+  VisualGyroSettings settingsFromConfig(const Config& config) const;
+
+  // --- ROS handles ---
+  std::unique_ptr<image_transport::ImageTransport> it_;
+  image_transport::CameraSubscriber camera_sub_;
+  image_transport::Subscriber image_sub_;
+  ros::Subscriber ground_truth_sub_;
+  ros::Publisher imu_pub_, rotation_pub_, orientation_pub_, yaw_plot_pub_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
+  std::unique_ptr<dynamic_reconfigure::Server<Config>> reconfigure_server_;
+  boost::recursive_mutex reconfigure_mutex_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diagnostic_timer_;
+
+  std::mutex connect_mutex_;  ///< guards the subscriptions (connect callbacks run on other threads)
+  bool subscribed_ = false;
+  std::mutex state_mutex_;    ///< guards everything below
+
+  // --- parameters ---
+  bool use_camera_info_ = true;
+  std::string backend_request_ = "auto";
+  std::string output_frame_;
+  std::string world_frame_ = "visual_gyro_world";
+  bool publish_tf_ = false;
+  std::string tf_child_frame_ = "visual_gyro_camera";
+  double plot_time_scale_ = 0.2;   ///< yaw plot: metres per second of time
+  double plot_yaw_scale_ = 0.05;   ///< yaw plot: metres per degree of yaw
+  int plot_points_ = 3000;
+  double ground_truth_tolerance_ = 0.005;  ///< [s] ground-truth stamp matching an image stamp
+  Config config_;
+  bool have_config_ = false;
+
+  // --- pipeline state ---
+  std::unique_ptr<VisualGyro> pipeline_;
+  CameraModel camera_;
+  bool have_camera_ = false;
+  std::string camera_error_;        ///< why the last camera could not be used
+  bool have_previous_ = false;      ///< the pipeline holds a previous frame
+  double previous_stamp_ = 0.0;
+  bool reset_pending_ = false;      ///< reset before the next frame (inputs were re-subscribed)
+  int mono16_max_ = 0;
+  Eigen::Matrix3d integrated_ = Eigen::Matrix3d::Identity();  ///< camera frame, since reset
+  std::string backend_used_;
+  std::string last_warning_;
+
+  // --- output frame ---
+  std::string cached_tf_key_;
+  Eigen::Matrix3d cached_output_rotation_ = Eigen::Matrix3d::Identity();
+  ros::WallTime cached_tf_time_;
+  bool have_cached_tf_ = false;
+
+  // --- yaw plot ---
+  bool plot_started_ = false;
+  double plot_t0_ = 0.0;
+  double plot_last_yaw_deg_ = 0.0;
+  visualization_msgs::Marker plot_estimate_, plot_truth_;
+  std::deque<std::pair<double, Eigen::Quaterniond>> ground_truth_buffer_;
+  bool have_truth_reference_ = false;
+  Eigen::Quaterniond truth_reference_ = Eigen::Quaterniond::Identity();
+  double truth_last_yaw_deg_ = 0.0;
+  double truth_last_stamp_ = -1.0;
+
+  // --- statistics (window = since the last diagnostics update) ---
+  struct Window {
+    uint64_t images = 0, processed = 0, rotations = 0, imus = 0, invalid = 0, skipped = 0;
+    double latency_sum_ms = 0.0, latency_max_ms = 0.0, matches_sum = 0.0, vote_ratio_sum = 0.0;
+    uint64_t estimates = 0;
+  };
+  Window window_;
+  ros::WallTime window_start_;
+  uint64_t total_images_ = 0, total_rotations_ = 0, total_imus_ = 0, total_invalid_ = 0, resets_ = 0;
+  std::map<std::string, uint64_t> skipped_;  ///< reason -> frames
+  std::string last_skip_reason_, last_invalid_reason_;
+};
+
+}  // namespace visual_gyro
