@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# The one command a session with a GPU runs on the device machine (nvcc, CMake, Python; no ROS,
+# OpenCV or Eigen): builds cuda/ stand-alone, checks the CUDA voter against the CPU gold voter on the
+# carried bearing files (.device_carry/bearings/*.txt, see cuda/README.md) and on synthetic frames,
+# runs the sanitizers on a small case, and times both voters. Results go to ${OUT:-out/gpu}.
+#
+#   scripts/gpu_bench.sh                 # everything
+#   QUICK=1 scripts/gpu_bench.sh         # smoke test: fewer frames and benchmark points
+#   CUDA_ARCHS=90 scripts/gpu_bench.sh   # architectures to build (default: the GPU's own)
+#   ALLOW_NO_GPU=1 scripts/gpu_bench.sh  # on a machine without GPU: CPU gold parts only, no failure
+#
+# Exit status: 0 when every check passed, 1 otherwise (the benchmarks still run).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+
+out_dir=${OUT:-out/gpu}
+build_dir=${BUILD_DIR:-build/cuda-standalone}
+mkdir -p "${out_dir}"
+log() { echo "[gpu_bench] $*"; }
+status=0
+
+export PATH="${PATH}:/usr/local/cuda/bin"
+{
+  date -u '+date: %Y-%m-%dT%H:%M:%SZ'
+  echo "commit: $(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  nvidia-smi --query-gpu=name,driver_version,compute_cap,memory.total --format=csv 2>&1
+  nvcc --version 2>&1 | tail -2
+  cmake --version | head -1
+} | tee "${out_dir}/environment.txt"
+gpu_name=$(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)
+log "GPU: ${gpu_name:-none found by nvidia-smi}"
+
+archs=${CUDA_ARCHS:-}
+if [[ -z ${archs} ]]; then
+  archs=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d '. ')
+  [[ ${archs} =~ ^[0-9]+$ ]] || archs="75;80;86;89;90"
+fi
+log "building cuda/ stand-alone for CUDA architectures ${archs}"
+if ! cmake -S cuda -B "${build_dir}" -DCMAKE_BUILD_TYPE=Release "-DVISUAL_GYRO_CUDA_ARCHITECTURES=${archs}" \
+    > "${out_dir}/build.log" 2>&1 ||
+   ! cmake --build "${build_dir}" -j"$(nproc)" >> "${out_dir}/build.log" 2>&1; then
+  tail -40 "${out_dir}/build.log"
+  log "BUILD FAILED (log: ${out_dir}/build.log)"
+  exit 1
+fi
+check="${build_dir}/cuda_voter_check"
+bench="${build_dir}/cuda_voter_bench"
+
+run() {  # run <log name> <command...>: tee the output, remember a failure
+  log "$*"
+  "${@:2}" 2>&1 | tee "${out_dir}/$1.log"
+  local rc=${PIPESTATUS[0]}
+  if [[ ${rc} -ne 0 ]]; then
+    log "FAILED (exit ${rc}): ${*:2}"
+    status=1
+  fi
+  return 0
+}
+
+require_gpu=(--require-gpu)
+[[ -n ${ALLOW_NO_GPU:-} ]] && require_gpu=()
+if [[ -n ${QUICK:-} ]]; then
+  frames_opt=(--max-frames 20); synthetic=8; bench_opt=(--quick)
+else
+  frames_opt=(); synthetic=32; bench_opt=()
+fi
+
+# 1. CPU/GPU equivalence on the real sequences' matches, when the session carried them.
+shopt -s nullglob
+files=(.device_carry/bearings/*.txt)
+if (( ${#files[@]} )); then
+  run check_files "${check}" "${require_gpu[@]}" "${frames_opt[@]}" --csv "${out_dir}/check_files.csv" "${files[@]}"
+else
+  log "no bearing files in .device_carry/bearings/: real-data check SKIPPED (see cuda/README.md to export them)"
+fi
+# 2. ... and on synthetic frames (pure rotation and forward driving, 30 % outliers).
+run check_synthetic "${check}" "${require_gpu[@]}" --synthetic "${synthetic}" --csv "${out_dir}/check_synthetic.csv"
+
+# 3. Memory errors and shared-memory races on a small case.
+if command -v compute-sanitizer > /dev/null; then
+  for tool in memcheck racecheck; do
+    run "sanitizer_${tool}" compute-sanitizer --tool "${tool}" --error-exitcode 9 \
+      "${check}" "${require_gpu[@]}" --synthetic 2 --hypotheses 3000
+  done
+else
+  log "compute-sanitizer not found: sanitizer runs SKIPPED"
+fi
+
+# 4. Timings: estimation time against hypotheses and matches, CPU gold and CUDA.
+run bench_synthetic "${bench}" "${bench_opt[@]}" --csv "${out_dir}/bench_synthetic.csv"
+for f in "${files[@]}"; do
+  name=$(basename "${f}" .txt)
+  run "bench_${name}" "${bench}" "${bench_opt[@]}" --file "${f}" --csv "${out_dir}/bench_${name}.csv"
+done
+
+log "results in ${out_dir}:"
+ls -l "${out_dir}"
+if [[ ${status} -ne 0 ]]; then
+  log "SOME CHECKS FAILED"
+elif grep -q "GPU PART SKIPPED" "${out_dir}"/check_synthetic.log; then
+  log "no CUDA device worked: only the CPU gold parts ran (ALLOW_NO_GPU); nothing on the GPU was checked or timed"
+else
+  log "ALL CHECKS PASSED on ${gpu_name:-unknown GPU}"
+fi
+exit "${status}"
