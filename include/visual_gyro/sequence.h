@@ -33,7 +33,9 @@ struct Sequence {
   bool hasGyro() const { return !gyro.empty(); }
   /// Ground-truth frame-to-frame rotation R_{k-1}^T R_k (k >= 1), from poses or, for EuRoC,
   /// from the gyro integrated between the two image stamps and rotated into the camera frame.
-  /// Returns false when the sequence has neither.
+  /// Returns false when the sequence has neither (or the gyro does not cover the interval).
+  /// The gyro's bias is NOT removed: EuRoC's ADIS16448 reads ~0.08 rad/s while standing still,
+  /// so a static EuRoC stretch shows ~0.2 deg of "true" rotation per 50 ms frame.
   bool trueRotation(size_t k, Eigen::Matrix3d* rotation) const;
   /// Mean gyro angular velocity between stamps of images k-1 and k, in the camera frame [rad/s].
   bool trueAngularVelocity(size_t k, Eigen::Vector3d* omega) const;

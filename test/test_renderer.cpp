@@ -1,0 +1,265 @@
+// Synthetic renderer: geometry (infinite homography between rotated views), KITTI round trip,
+// texture richness, motion of the presets, bad input.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "test_support.h"
+#include "visual_gyro/renderer.h"
+#include "visual_gyro/sequence.h"
+
+namespace visual_gyro {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+Eigen::Matrix3d rotation(double angle_deg, const Eigen::Vector3d& axis) {
+  return Eigen::AngleAxisd(angle_deg * kDeg, axis.normalized()).toRotationMatrix();
+}
+
+double rotationAngleDeg(const Eigen::Matrix3d& R) { return Eigen::AngleAxisd(R).angle() / kDeg; }
+
+cv::Mat toCv(const Eigen::Matrix3d& m) {
+  cv::Mat out(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out.at<double>(r, c) = m(r, c);
+  return out;
+}
+
+/// Mean absolute difference between view 1 and view 2 warped into view 1 by the infinite
+/// homography of `relative` (= R1^T R2: maps view-2 bearings into view 1).
+double warpedDifference(const cv::Mat& view1, const cv::Mat& view2, const Eigen::Matrix3d& K,
+                        const Eigen::Matrix3d& relative, double* overlap) {
+  const Eigen::Matrix3d H = K * relative * K.inverse();  // view-2 pixel -> view-1 pixel
+  cv::Mat warped, mask;
+  cv::warpPerspective(view2, warped, toCv(H), view1.size(), cv::INTER_LINEAR);
+  cv::warpPerspective(cv::Mat(view2.size(), CV_8U, cv::Scalar(255)), mask, toCv(H), view1.size(), cv::INTER_NEAREST);
+  cv::erode(mask, mask, cv::Mat(), cv::Point(-1, -1), 3);
+  cv::Mat diff;
+  cv::absdiff(view1, warped, diff);
+  *overlap = cv::countNonZero(mask) / static_cast<double>(mask.total());
+  return cv::mean(diff, mask)[0];
+}
+
+TEST(Renderer, RotatedViewsAreRelatedByTheInfiniteHomography) {
+  RenderSettings settings;
+  settings.preset = "handheld";
+  settings.noise_sigma = 0.0;
+  Eigen::Matrix3d K;
+  K << settings.fx, 0, settings.cx, 0, settings.fy, settings.cy, 0, 0, 1;
+  const Eigen::Vector3d position(0.1, -0.05, 0.2);
+  const Eigen::Matrix3d R1 = rotation(10.0, Eigen::Vector3d(0.2, 1.0, -0.1));
+  const Eigen::Matrix3d relative = rotation(4.0, Eigen::Vector3d(0.3, 1.0, 0.4));
+  const Eigen::Matrix3d R2 = R1 * relative;
+  const cv::Mat view1 = renderView(settings, R1, position);
+  const cv::Mat view2 = renderView(settings, R2, position);
+  ASSERT_EQ(view1.type(), CV_8UC1);
+  ASSERT_EQ(view1.size(), cv::Size(640, 480));
+
+  double overlap = 0;
+  const double right = warpedDifference(view1, view2, K, relative, &overlap);
+  EXPECT_GT(overlap, 0.6);
+  // A rotation 0.5 deg off, and the inverse rotation (the wrong convention).
+  const double off = warpedDifference(view1, view2, K, relative * rotation(0.5, Eigen::Vector3d(1, 0, 0)), &overlap);
+  const double inverse = warpedDifference(view1, view2, K, relative.transpose(), &overlap);
+  const double unwarped = warpedDifference(view1, view2, K, Eigen::Matrix3d::Identity(), &overlap);
+  std::printf("mean |view1 - warped view2|: true rotation %.2f, 0.5 deg off %.2f, inverse %.2f, none %.2f\n", right,
+              off, inverse, unwarped);
+  EXPECT_LT(right, 6.0);
+  EXPECT_GT(off, 2.5 * right);
+  EXPECT_GT(inverse, 4.0 * right);
+  EXPECT_GT(unwarped, 4.0 * right);
+}
+
+TEST(Renderer, SameSeedSameImagesOtherSeedOtherTexture) {
+  RenderSettings settings;
+  settings.preset = "handheld";
+  settings.width = 160;
+  settings.height = 120;
+  settings.fx = settings.fy = 125.0;
+  settings.cx = 79.5;
+  settings.cy = 59.5;
+  const Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  const cv::Mat a = renderView(settings, R, p);
+  const cv::Mat b = renderView(settings, R, p);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_L1), 0.0);
+  settings.seed = 8;
+  const cv::Mat c = renderView(settings, R, p);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_L1) / a.total(), 10.0);
+}
+
+TEST(Renderer, KittiLayoutLoadsBack) {
+  RenderSettings settings;
+  settings.preset = "drive";
+  settings.frames = 6;
+  settings.width = 320;
+  settings.height = 240;
+  settings.fx = settings.fy = 250.0;
+  settings.cx = 159.5;
+  settings.cy = 119.5;
+  const RenderedSequence rendered = renderSequence(settings);
+  ASSERT_EQ(rendered.images.size(), 6u);
+  const std::string dir = test::makeTempDir("render_kitti") + "/synthetic_drive";
+  writeKittiLayout(rendered, dir);
+
+  const Sequence seq = loadSequence(dir);
+  EXPECT_EQ(seq.name, "synthetic_drive");
+  EXPECT_EQ(seq.layout, "kitti");
+  ASSERT_EQ(seq.image_paths.size(), 6u);
+  EXPECT_EQ(seq.camera.width(), 320);
+  EXPECT_EQ(seq.camera.height(), 240);
+  EXPECT_DOUBLE_EQ(seq.camera.fx(), 250.0);
+  EXPECT_DOUBLE_EQ(seq.camera.fy(), 250.0);
+  EXPECT_DOUBLE_EQ(seq.camera.cx(), 159.5);
+  EXPECT_DOUBLE_EQ(seq.camera.cy(), 119.5);
+  ASSERT_TRUE(seq.hasPoses());
+  ASSERT_EQ(seq.stamps.size(), 6u);
+  for (size_t k = 0; k < 6; ++k) {
+    EXPECT_NEAR(seq.stamps[k], rendered.stamps[k], 1e-9);
+    EXPECT_NEAR(seq.stamps[k], k * 0.1, 1e-9);
+    EXPECT_LT((seq.positions[k] - rendered.positions[k]).norm(), 1e-6);
+    if (k == 0) continue;
+    Eigen::Matrix3d loaded;
+    ASSERT_TRUE(seq.trueRotation(k, &loaded));
+    const Eigen::Matrix3d truth = rendered.orientations[k - 1].transpose() * rendered.orientations[k];
+    EXPECT_LT((loaded - truth).norm(), 1e-7) << "frame " << k;
+    Eigen::Vector3d omega;
+    ASSERT_TRUE(seq.trueAngularVelocity(k, &omega));
+    EXPECT_NEAR(omega.norm() * 0.1 / kDeg, rotationAngleDeg(truth), 1e-5);
+  }
+  const cv::Mat image = cv::imread(seq.image_paths[3], cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(cv::norm(image, rendered.images[3], cv::NORM_INF), 0.0);
+  std::filesystem::remove_all(std::filesystem::path(dir).parent_path());
+}
+
+TEST(Renderer, EveryPresetHasEnoughFastCorners) {
+  for (const std::string preset : {"drive", "handheld", "forward"}) {
+    RenderSettings settings;
+    settings.preset = preset;
+    settings.frames = 3;
+    settings.rate_hz = preset == "handheld" ? 30.0 : 10.0;
+    const auto start = std::chrono::steady_clock::now();
+    const RenderedSequence seq = renderSequence(settings);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    // Per-frame time without the scene set-up: render the last pose again (scene cached).
+    const auto view_start = std::chrono::steady_clock::now();
+    renderView(settings, seq.orientations.back(), seq.positions.back());
+    const double view_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - view_start).count();
+    for (size_t k = 0; k < seq.images.size(); ++k) {
+      std::vector<cv::KeyPoint> corners;
+      cv::FAST(seq.images[k], corners, 20, true);
+      if (k == 0)
+        std::printf("%-8s frame 0: %zu FAST corners (threshold 20); 3 frames incl. scene set-up %.0f ms, one view %.0f ms\n",
+                    preset.c_str(), corners.size(), ms, view_ms);
+      EXPECT_GE(corners.size(), 300u) << preset << " frame " << k;
+      // Not a blank or saturated image.
+      cv::Scalar mean, stddev;
+      cv::meanStdDev(seq.images[k], mean, stddev);
+      EXPECT_GT(stddev[0], 20.0) << preset;
+      EXPECT_GT(mean[0], 40.0) << preset;
+      EXPECT_LT(mean[0], 215.0) << preset;
+    }
+  }
+}
+
+TEST(Renderer, PresetMotionMatchesItsDescription) {
+  struct Expect {
+    std::string preset;
+    double rate_hz;
+    int frames;
+    double min_peak_deg, max_peak_deg;  // largest rotation per frame
+    double min_step_m, max_step_m;      // translation per frame
+  };
+  const Expect cases[] = {{"drive", 10.0, 60, 2.5, 3.3, 0.99, 1.01},
+                          {"forward", 10.0, 60, 0.0, 0.1, 0.99, 1.01},
+                          {"handheld", 30.0, 90, 0.8, 1.5, 0.0, 0.005}};
+  for (const auto& c : cases) {
+    RenderSettings settings;
+    settings.preset = c.preset;
+    settings.frames = c.frames;
+    settings.rate_hz = c.rate_hz;
+    settings.width = 32;  // motion only: tiny images
+    settings.height = 24;
+    settings.fx = settings.fy = 25.0;
+    settings.cx = 15.5;
+    settings.cy = 11.5;
+    const RenderedSequence seq = renderSequence(settings);
+    ASSERT_EQ(seq.orientations.size(), static_cast<size_t>(c.frames));
+    EXPECT_LT((seq.orientations[0] - Eigen::Matrix3d::Identity()).norm(), 1e-12) << "world = first camera";
+    EXPECT_LT(seq.positions[0].norm(), 1e-9);
+    double peak = 0, yaw_sum = 0;
+    for (int k = 1; k < c.frames; ++k) {
+      const Eigen::Matrix3d R = seq.orientations[k - 1].transpose() * seq.orientations[k];
+      peak = std::max(peak, rotationAngleDeg(R));
+      yaw_sum += std::atan2(R(0, 2), R(2, 2)) / kDeg;
+      const double step = (seq.positions[k] - seq.positions[k - 1]).norm();
+      EXPECT_GE(step, c.min_step_m) << c.preset << " frame " << k;
+      EXPECT_LE(step, c.max_step_m) << c.preset << " frame " << k;
+      EXPECT_NEAR(seq.stamps[k], k / c.rate_hz, 1e-12);
+      EXPECT_LT((seq.orientations[k].transpose() * seq.orientations[k] - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+    }
+    std::printf("%-8s peak %.3f deg/frame, summed yaw %+.2f deg\n", c.preset.c_str(), peak, yaw_sum);
+    EXPECT_GE(peak, c.min_peak_deg) << c.preset;
+    EXPECT_LE(peak, c.max_peak_deg) << c.preset;
+    if (c.preset == "drive") {
+      // Camera heading at the middle of the right turn points right (positive yaw about +y).
+      const Eigen::Vector3d forward = seq.orientations[30] * Eigen::Vector3d::UnitZ();
+      EXPECT_GT(forward.x(), 0.3);
+    }
+  }
+}
+
+TEST(Renderer, BadSettingsThrowInvalidArgument) {
+  RenderSettings settings;
+  settings.preset = "underwater";
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+  EXPECT_THROW(renderView(settings, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero()), std::invalid_argument);
+  settings.preset = "drive";
+  settings.width = 0;
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+  EXPECT_THROW(renderView(settings, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero()), std::invalid_argument);
+  settings.width = 640;
+  settings.height = 0;
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+  settings.height = 480;
+  settings.frames = 0;
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+  settings.frames = 2;
+  settings.fx = std::nan("");
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+  settings.fx = 500;
+  settings.rate_hz = 0;
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+  settings.rate_hz = 10;
+  EXPECT_THROW(renderView(settings, Eigen::Matrix3d::Constant(std::nan("")), Eigen::Vector3d::Zero()),
+               std::invalid_argument);
+}
+
+TEST(Renderer, WriteKittiLayoutReportsErrors) {
+  RenderedSequence empty;
+  EXPECT_THROW(writeKittiLayout(empty, test::makeTempDir("render_empty")), std::invalid_argument);
+  RenderedSequence one;
+  one.images.push_back(cv::Mat(8, 8, CV_8UC1, cv::Scalar(7)));
+  one.orientations.push_back(Eigen::Matrix3d::Identity());
+  one.positions.push_back(Eigen::Vector3d::Zero());
+  one.stamps.push_back(0.0);
+  // A regular file where the folder should be.
+  const std::string dir = test::makeTempDir("render_blocked");
+  const std::string blocked = dir + "/file";
+  { std::ofstream(blocked) << "x"; }
+  EXPECT_THROW(writeKittiLayout(one, blocked + "/seq"), std::runtime_error);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace visual_gyro

@@ -1,0 +1,345 @@
+// Sequence loaders: the shared KITTI and EuRoC folders, gyro integration on a made-up EuRoC
+// folder, and malformed inputs.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "test_support.h"
+#include "visual_gyro/sequence.h"
+
+namespace visual_gyro {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDeg = M_PI / 180.0;
+
+double yawOf(const Eigen::Matrix3d& R) { return std::atan2(R(0, 2), R(2, 2)); }
+
+/// Expects loadSequence(folder) to throw std::runtime_error whose message contains `needle`.
+void expectLoadError(const std::string& folder, const std::string& needle) {
+  try {
+    loadSequence(folder);
+    ADD_FAILURE() << "no exception for " << folder << " (expected one naming '" << needle << "')";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos)
+        << "message '" << e.what() << "' does not name '" << needle << "'";
+  }
+}
+
+void writeFile(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path) << text;
+}
+
+void writeImage(const fs::path& path) {
+  fs::create_directories(path.parent_path());
+  ASSERT_TRUE(cv::imwrite(path.string(), cv::Mat(12, 16, CV_8UC1, cv::Scalar(90))));
+}
+
+TEST(SharedSequence, KittiTurn) {
+  std::string why;
+  const std::string path = test::sharedSequence("kitti_turn", &why);
+  if (path.empty()) GTEST_SKIP() << why;
+  const Sequence seq = loadSequence(path);
+  EXPECT_EQ(seq.name, "kitti_turn");
+  EXPECT_EQ(seq.layout, "kitti");
+  ASSERT_EQ(seq.image_paths.size(), 51u);
+  ASSERT_EQ(seq.stamps.size(), 51u);
+  EXPECT_DOUBLE_EQ(seq.stamps[10], 1.0);
+  // This folder's calib.txt holds 718.856 (KITTI sequence 00-02 intrinsics), not the 707.0912 of
+  // kitti_straight that the data README quotes for both.
+  EXPECT_NEAR(seq.camera.fx(), 718.856, 1e-9);
+  EXPECT_NEAR(seq.camera.fy(), 718.856, 1e-9);
+  EXPECT_NEAR(seq.camera.cx(), 607.1928, 1e-9);
+  EXPECT_NEAR(seq.camera.cy(), 185.2157, 1e-9);
+  EXPECT_EQ(seq.camera.width(), 1241);
+  EXPECT_EQ(seq.camera.height(), 376);
+  EXPECT_EQ(seq.camera.distortionModel(), DistortionModel::kNone);
+  ASSERT_TRUE(seq.hasPoses());
+  EXPECT_FALSE(seq.hasGyro());
+  double yaw_sum = 0, yaw_max = 0;
+  for (size_t k = 1; k < seq.image_paths.size(); ++k) {
+    Eigen::Matrix3d R;
+    ASSERT_TRUE(seq.trueRotation(k, &R));
+    EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-9);
+    yaw_sum += yawOf(R);
+    yaw_max = std::max(yaw_max, std::abs(yawOf(R)));
+    Eigen::Vector3d omega;
+    ASSERT_TRUE(seq.trueAngularVelocity(k, &omega));
+    EXPECT_NEAR(omega.norm() * 0.1, Eigen::AngleAxisd(R).angle(), 1e-12);
+  }
+  EXPECT_NEAR(yaw_sum / kDeg, 97.9, 0.3);  // a right turn: positive yaw about +y (down)
+  EXPECT_NEAR(yaw_max / kDeg, 2.74, 0.05);
+  // The car ends ~40 m to the right of where it started.
+  EXPECT_GT(seq.positions.back().x(), 30.0);
+  Eigen::Matrix3d R;
+  EXPECT_FALSE(seq.trueRotation(0, &R));
+  EXPECT_FALSE(seq.trueRotation(51, &R));
+}
+
+TEST(SharedSequence, KittiStraight) {
+  std::string why;
+  const std::string path = test::sharedSequence("kitti_straight", &why);
+  if (path.empty()) GTEST_SKIP() << why;
+  const Sequence seq = loadSequence(path);
+  ASSERT_EQ(seq.image_paths.size(), 51u);
+  EXPECT_NEAR(seq.camera.fx(), 707.0912, 1e-9);
+  EXPECT_EQ(seq.camera.width(), 1226);
+  EXPECT_EQ(seq.camera.height(), 370);
+  ASSERT_TRUE(seq.hasPoses());
+  for (size_t k = 1; k < seq.image_paths.size(); ++k) {
+    Eigen::Matrix3d R;
+    ASSERT_TRUE(seq.trueRotation(k, &R));
+    EXPECT_LT(Eigen::AngleAxisd(R).angle() / kDeg, 0.25) << "frame " << k;
+  }
+}
+
+TEST(SharedSequence, EurocStatic) {
+  std::string why;
+  const std::string path = test::sharedSequence("euroc_v101_static", &why);
+  if (path.empty()) GTEST_SKIP() << why;
+  const Sequence seq = loadSequence(path);
+  EXPECT_EQ(seq.name, "euroc_v101_static");
+  EXPECT_EQ(seq.layout, "euroc");
+  ASSERT_EQ(seq.image_paths.size(), 95u);
+  ASSERT_EQ(seq.stamps.size(), 95u);
+  EXPECT_TRUE(fs::is_regular_file(seq.image_paths.front())) << seq.image_paths.front();
+  EXPECT_NEAR(seq.stamps.front(), 1403715273.262142976, 1e-6);
+  EXPECT_NEAR(seq.stamps[1] - seq.stamps[0], 0.05, 1e-6);
+  EXPECT_EQ(seq.camera.width(), 752);
+  EXPECT_EQ(seq.camera.height(), 480);
+  EXPECT_DOUBLE_EQ(seq.camera.fx(), 458.654);
+  EXPECT_DOUBLE_EQ(seq.camera.fy(), 457.296);
+  EXPECT_DOUBLE_EQ(seq.camera.cx(), 367.215);
+  EXPECT_DOUBLE_EQ(seq.camera.cy(), 248.375);
+  EXPECT_EQ(seq.camera.distortionModel(), DistortionModel::kPlumbBob);
+  const std::vector<double> expected = {-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05};
+  ASSERT_EQ(seq.camera.distortion().size(), 4u);
+  for (size_t i = 0; i < 4; ++i) EXPECT_DOUBLE_EQ(seq.camera.distortion()[i], expected[i]);
+  EXPECT_EQ(seq.camera.validate(), "");
+  ASSERT_TRUE(seq.hasGyro());
+  EXPECT_FALSE(seq.hasPoses());
+  EXPECT_GT(seq.gyro.size(), 1000u);
+  const Eigen::Matrix3d& R_bs = seq.body_from_camera;
+  EXPECT_LT((R_bs.transpose() * R_bs - Eigen::Matrix3d::Identity()).norm(), 1e-9);
+  EXPECT_NEAR(R_bs.determinant(), 1.0, 1e-9);
+  EXPECT_NEAR(R_bs(0, 1), -0.999880929698, 1e-6);  // camera y (down) ~ body -x
+  EXPECT_NEAR(R_bs(1, 0), 0.999557249008, 1e-6);
+
+  // The drone stands still: the gyro reads its bias, and so does the "truth" (not removed). The
+  // bias is the mean reading while the frames were taken (the file runs on for a second after the
+  // last frame, when the drone starts to move).
+  Eigen::Vector3d bias = Eigen::Vector3d::Zero();
+  int samples = 0;
+  for (const auto& s : seq.gyro) {
+    if (s.stamp < seq.stamps.front() || s.stamp > seq.stamps.back()) continue;
+    bias += s.angular_velocity;
+    ++samples;
+  }
+  ASSERT_GT(samples, 900);
+  bias /= samples;
+  const Eigen::Vector3d bias_camera = R_bs.transpose() * bias;
+  EXPECT_GT(bias.norm(), 0.05);
+  double total_deg = 0;
+  Eigen::Vector3d mean_omega = Eigen::Vector3d::Zero();
+  for (size_t k = 1; k < seq.image_paths.size(); ++k) {
+    Eigen::Matrix3d R;
+    ASSERT_TRUE(seq.trueRotation(k, &R)) << "frame " << k;
+    const Eigen::AngleAxisd aa(R);
+    EXPECT_LT(aa.angle() / kDeg, 0.5) << "frame " << k;
+    total_deg += aa.angle() / kDeg;
+    Eigen::Vector3d omega;
+    ASSERT_TRUE(seq.trueAngularVelocity(k, &omega));
+    // Per frame the ADIS16448's noise (and the rotors' vibration) moves it by up to ~0.04 rad/s.
+    EXPECT_LT((omega - bias_camera).norm(), 0.05) << "frame " << k << ": " << omega.transpose();
+    mean_omega += omega / static_cast<double>(seq.image_paths.size() - 1);
+    // The integrated rotation agrees with the mean rate over the interval.
+    const double dt = seq.stamps[k] - seq.stamps[k - 1];
+    EXPECT_LT((aa.angle() * aa.axis() - omega * dt).norm(), 1e-4);
+  }
+  EXPECT_LT((mean_omega - bias_camera).norm(), 2e-3) << mean_omega.transpose() << " vs " << bias_camera.transpose();
+  std::printf("euroc_v101_static: gyro bias (camera frame) %.4f %.4f %.4f rad/s, %.2f deg of 'rotation' over %zu "
+              "frames\n",
+              bias_camera.x(), bias_camera.y(), bias_camera.z(), total_deg, seq.image_paths.size() - 1);
+}
+
+/// A tiny EuRoC folder with a known T_BS and gyro; checks the integration against closed forms.
+TEST(Sequence, EurocGyroIntegration) {
+  const fs::path root = fs::path(test::makeTempDir("seq_euroc")) / "made_up";
+  // Three frames at 2.5, 52.5 and 102.5 ms (+ 100 s), between the gyro's samples, which run at
+  // 200 Hz from -20 ms to 120 ms.
+  std::string csv = "#timestamp [ns],filename\n";
+  for (int k = 0; k < 3; ++k) {
+    const long long ns = 100002500000LL + k * 50000000LL;
+    csv += std::to_string(ns) + "," + std::to_string(ns) + ".png\r\n";  // CRLF too
+    writeImage(root / "cam0" / "data" / (std::to_string(ns) + ".png"));
+  }
+  writeFile(root / "cam0" / "data.csv", csv);
+  // T_BS: camera z = body x, camera x = body -y, camera y = body -z (a forward-looking camera).
+  writeFile(root / "cam0" / "sensor.yaml",
+            "%YAML:1.0\nsensor_type: camera\nT_BS:\n  cols: 4\n  rows: 4\n  data: [0.0, 0.0, 1.0, 0.1,\n"
+            "         -1.0, 0.0, 0.0, 0.0,\n         0.0, -1.0, 0.0, 0.0,\n         0.0, 0.0, 0.0, 1.0]\n"
+            "rate_hz: 20\nresolution: [16, 12]\ncamera_model: pinhole\n"
+            "intrinsics: [10.0, 11.0, 7.5, 5.5] #fu, fv, cu, cv\n"
+            "distortion_model: radial-tangential\ndistortion_coefficients: [0.01, -0.002, 0.0, 0.0]\n");
+  // Body rate: constant 0.5 rad/s about body z, plus a ramp about body x: 2 t rad/s.
+  std::string imu = "#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n";
+  for (int i = -4; i <= 24; ++i) {
+    const double t = i * 0.005;
+    const long long ns = 100000000000LL + i * 5000000LL;
+    char line[256];
+    std::snprintf(line, sizeof(line), "%lld,%.17g,0,0.5,0,0,9.81\n", ns, 2.0 * t);
+    imu += line;
+  }
+  writeFile(root / "imu0" / "data.csv", imu);
+
+  const Sequence seq = loadSequence(root.string());
+  EXPECT_EQ(seq.name, "made_up");
+  ASSERT_EQ(seq.image_paths.size(), 3u);
+  EXPECT_EQ(seq.camera.width(), 16);
+  EXPECT_EQ(seq.camera.distortionModel(), DistortionModel::kPlumbBob);
+  ASSERT_EQ(seq.gyro.size(), 29u);
+  Eigen::Matrix3d R_bs;
+  R_bs << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  EXPECT_LT((seq.body_from_camera - R_bs).norm(), 1e-12);
+
+  // Interval [0.0525, 0.1025] s: body z rate 0.5 -> camera -y; body x ramp -> camera z, mean
+  // 2 * 0.0775 (the ends are interpolated between samples).
+  Eigen::Vector3d omega;
+  ASSERT_TRUE(seq.trueAngularVelocity(2, &omega));
+  EXPECT_LT((omega - Eigen::Vector3d(0.0, -0.5, 0.155)).norm(), 1e-9) << omega.transpose();
+  // The rotation, against a fine integration of the same rate here.
+  Eigen::Matrix3d R;
+  ASSERT_TRUE(seq.trueRotation(2, &R));
+  Eigen::Matrix3d fine = Eigen::Matrix3d::Identity();
+  const int steps = 20000;
+  for (int s = 0; s < steps; ++s) {
+    const double t = 0.0525 + (s + 0.5) * 0.05 / steps;
+    const Eigen::Vector3d w_c = R_bs.transpose() * Eigen::Vector3d(2.0 * t, 0.0, 0.5);
+    fine = fine * Eigen::AngleAxisd(w_c.norm() * 0.05 / steps, w_c.normalized()).toRotationMatrix();
+  }
+  // The per-piece midpoint rate differs from the exact solution only at second order (commutator).
+  EXPECT_LT((R - fine).norm(), 1e-6);
+  EXPECT_GT(Eigen::AngleAxisd(R).angle(), 0.02);
+  EXPECT_NEAR(yawOf(R), -0.5 * 0.05, 1e-3);  // rotation about camera -y: negative yaw
+
+  // Frames outside the gyro's span have no truth.
+  Sequence cut = seq;
+  cut.gyro.resize(10);  // up to 0.025 s
+  EXPECT_FALSE(cut.trueRotation(2, &R));
+  EXPECT_FALSE(cut.trueAngularVelocity(2, &omega));
+  fs::remove_all(root.parent_path());
+}
+
+TEST(Sequence, KittiLayoutDetails) {
+  const fs::path root = fs::path(test::makeTempDir("seq_kitti")) / "tiny";
+  for (int k = 0; k < 3; ++k) writeImage(root / "image_0" / ("00000" + std::to_string(k) + ".png"));
+  writeFile(root / "calib.txt", "10 0 7.5 0 0 11 5.5 0 0 0 1 0\n");  // bare numbers, image_0/
+  Sequence seq = loadSequence(root.string() + "/");
+  EXPECT_EQ(seq.name, "tiny");
+  ASSERT_EQ(seq.image_paths.size(), 3u);
+  EXPECT_FALSE(seq.hasPoses());
+  EXPECT_NEAR(seq.stamps[2], 0.2, 1e-12);
+  EXPECT_DOUBLE_EQ(seq.camera.fy(), 11.0);
+  Eigen::Matrix3d R;
+  Eigen::Vector3d w;
+  EXPECT_FALSE(seq.trueRotation(1, &R));
+  EXPECT_FALSE(seq.trueAngularVelocity(1, &w));
+
+  writeFile(root / "times.txt", "0.0\n0.05\n0.125\n");
+  const Eigen::Matrix3d Ry = Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  std::string poses;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Matrix3d Rk = Eigen::Matrix3d::Identity();
+    for (int i = 0; i < k; ++i) Rk = Rk * Ry;
+    char line[512];
+    std::snprintf(line, sizeof(line), "%.12e %.12e %.12e %d %.12e %.12e %.12e 0 %.12e %.12e %.12e %d\n", Rk(0, 0),
+                  Rk(0, 1), Rk(0, 2), k, Rk(1, 0), Rk(1, 1), Rk(1, 2), Rk(2, 0), Rk(2, 1), Rk(2, 2), 2 * k);
+    poses += line;
+  }
+  writeFile(root / "poses.txt", poses);
+  seq = loadSequence(root.string());
+  EXPECT_NEAR(seq.stamps[2], 0.125, 1e-12);
+  ASSERT_TRUE(seq.trueRotation(2, &R));
+  EXPECT_NEAR(yawOf(R), 0.02, 1e-10);
+  ASSERT_TRUE(seq.trueAngularVelocity(2, &w));
+  EXPECT_LT((w - Eigen::Vector3d(0, 0.02 / 0.075, 0)).norm(), 1e-8);
+  EXPECT_LT((seq.positions[2] - Eigen::Vector3d(2, 0, 4)).norm(), 1e-12);
+  fs::remove_all(root.parent_path());
+}
+
+TEST(Sequence, MalformedInputsNameTheFile) {
+  const fs::path base(test::makeTempDir("seq_bad"));
+  expectLoadError((base / "does_not_exist").string(), "does_not_exist");
+  expectLoadError("", "no such folder");
+
+  // Neither layout.
+  fs::create_directories(base / "empty");
+  expectLoadError((base / "empty").string(), "neither");
+
+  // KITTI without calib.txt, then with garbage in it, then with a short matrix.
+  const fs::path kitti = base / "kitti";
+  writeImage(kitti / "image_l" / "000000.png");
+  writeImage(kitti / "image_l" / "000001.png");
+  expectLoadError(kitti.string(), "calib.txt");
+  writeFile(kitti / "calib.txt", "P0: seven hundred and something\n");
+  expectLoadError(kitti.string(), "calib.txt:1");
+  writeFile(kitti / "calib.txt", "P0: 700 0 300 0 0 700 200 0 0 0 1\n");
+  expectLoadError(kitti.string(), "calib.txt:1");
+  writeFile(kitti / "calib.txt", "P0: 700 0 300 0 0 700 200 0 0 0 1 0\n");
+  EXPECT_NO_THROW(loadSequence(kitti.string()));
+  writeFile(kitti / "poses.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1\n");
+  expectLoadError(kitti.string(), "poses.txt:2");
+  writeFile(kitti / "poses.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+  expectLoadError(kitti.string(), "poses.txt");  // one pose for two images
+  writeFile(kitti / "poses.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n2 0 0 0 0 1 0 0 0 0 1 0\n");
+  expectLoadError(kitti.string(), "poses.txt:2");  // not a rotation
+  fs::remove(kitti / "poses.txt");
+  writeFile(kitti / "times.txt", "0.0\nsoon\n");
+  expectLoadError(kitti.string(), "times.txt:2");
+  writeFile(kitti / "times.txt", "0.1\n0.0\n");
+  expectLoadError(kitti.string(), "times.txt:2");
+  fs::remove(kitti / "times.txt");
+  // An unreadable "PNG".
+  writeFile(kitti / "image_l" / "000000.png", "not a png");
+  expectLoadError(kitti.string(), "000000.png");
+
+  // EuRoC: missing data.csv, broken data.csv line, missing sensor.yaml, broken yaml.
+  const fs::path euroc = base / "euroc";
+  fs::create_directories(euroc / "cam0" / "data");
+  expectLoadError(euroc.string(), "data.csv");
+  writeFile(euroc / "cam0" / "data.csv", "#timestamp [ns],filename\n1000,1000.png\nnot-a-stamp,x.png\n");
+  expectLoadError(euroc.string(), "data.csv:3");
+  writeFile(euroc / "cam0" / "data.csv", "#timestamp [ns],filename\n1000,1000.png\n2000,2000.png\n");
+  expectLoadError(euroc.string(), "sensor.yaml");
+  writeFile(euroc / "cam0" / "sensor.yaml", "intrinsics: [1, 2, 3]\nresolution: [16, 12]\n");
+  expectLoadError(euroc.string(), "sensor.yaml:1");
+  writeFile(euroc / "cam0" / "sensor.yaml",
+            "intrinsics: [10, 10, 8, 6]\nresolution: [16, 12]\ndistortion_model: none\n");
+  expectLoadError(euroc.string(), "T_BS");
+  writeFile(euroc / "cam0" / "sensor.yaml",
+            "intrinsics: [10, 10, 8, 6]\nresolution: [16, 12]\ndistortion_model: none\n"
+            "T_BS:\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0]\n");
+  expectLoadError(euroc.string(), "sensor.yaml:4");
+  writeFile(euroc / "cam0" / "sensor.yaml",
+            "intrinsics: [10, 10, 8, 6]\nresolution: [16, 12]\ndistortion_model: mystery\n"
+            "T_BS:\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n");
+  expectLoadError(euroc.string(), "mystery");
+  writeFile(euroc / "cam0" / "sensor.yaml",
+            "intrinsics: [10, 10, 8, 6]\nresolution: [16, 12]\ndistortion_model: none\n"
+            "T_BS:\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n");
+  const Sequence ok = loadSequence(euroc.string());
+  EXPECT_EQ(ok.image_paths.size(), 2u);
+  EXPECT_FALSE(ok.hasGyro());
+  writeFile(euroc / "imu0" / "data.csv", "#t,wx,wy,wz\n1000,0,0,0\n2000,0,zero,0\n");
+  expectLoadError(euroc.string(), "imu0/data.csv:3");
+  fs::remove_all(base);
+}
+
+}  // namespace
+}  // namespace visual_gyro
