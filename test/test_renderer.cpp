@@ -247,7 +247,9 @@ TEST(Renderer, BadSettingsThrowInvalidArgument) {
 
 TEST(Renderer, WriteKittiLayoutReportsErrors) {
   RenderedSequence empty;
-  EXPECT_THROW(writeKittiLayout(empty, test::makeTempDir("render_empty")), std::invalid_argument);
+  const std::string unused = test::makeTempDir("render_empty");
+  EXPECT_THROW(writeKittiLayout(empty, unused), std::invalid_argument);
+  std::filesystem::remove_all(unused);
   RenderedSequence one;
   one.images.push_back(cv::Mat(8, 8, CV_8UC1, cv::Scalar(7)));
   one.orientations.push_back(Eigen::Matrix3d::Identity());
