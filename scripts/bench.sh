@@ -68,10 +68,10 @@ done
 # 2. Rendered sequences (KITTI layout written by render_sequence).
 for preset in drive forward handheld; do
   dir="${OUT}/rendered/${preset}"
-  if [[ ! -f ${dir}/poses.txt ]]; then
-    "${RENDER}" --preset "${preset}" --frames "${RENDER_FRAMES}" --output "${dir}" >"${OUT}/logs/render_${preset}.log" 2>&1 ||
-      { echo "[bench] render_sequence ${preset} failed; see ${OUT}/logs/render_${preset}.log" >&2; continue; }
-  fi
+  # Rendered afresh each time (a few seconds): a cached folder could be stale after renderer changes.
+  rm -rf "${dir}"
+  "${RENDER}" --preset "${preset}" --frames "${RENDER_FRAMES}" --out "${dir}" >"${OUT}/logs/render_${preset}.log" 2>&1 ||
+    { echo "[bench] render_sequence ${preset} failed; see ${OUT}/logs/render_${preset}.log" >&2; continue; }
   run_eval rendered "${preset}" 0 "${dir}"
 done
 

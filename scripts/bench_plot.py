@@ -178,8 +178,9 @@ def line_plot(rows, methods, group, xlabel, path, title, xkey="x"):
         return
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for m in methods:
-        pts = sorted((num(r.get(xkey)) if r["group"] == group else base_x(group, r), num(r["rot_rmse_deg"]),
-                      num(r["yaw_rmse_deg"])) for r in sel if r["method"] == m)
+        # The unmodified rendered run is the first point (no outliers: x = 0; stride 1).
+        pts = sorted((num(r.get(xkey)), num(r["rot_rmse_deg"]), num(r["yaw_rmse_deg"]))
+                     for r in sel if r["method"] == m and not math.isnan(num(r.get(xkey))))
         if not pts:
             continue
         xs, rot, yaw = zip(*pts)
@@ -201,107 +202,92 @@ def base_of(group):
     return {"outliers": "drive", "translation": "forward"}.get(group, "")
 
 
-def base_x(group, r):
-    # The un-modified rendered run is the sweep's first point: no outliers, stride 1.
-    return 0.0 if group == "outliers" else 1.0
-
-
-def translation_axis(rows):
-    """Mean metres per pair by stride, for the translation plot's axis label."""
-    per = {}
-    for r in rows:
-        if (r["group"] == "translation" or (r["group"] == "rendered" and r["label"] == "forward")) \
-                and r.get("true_trans_mean_m") is not None:
-            per[int(r.get("stride", 1))] = float(r["true_trans_mean_m"])
-    return ", ".join(f"{s}: {m:.2f} m" for s, m in sorted(per.items()))
-
-
 def read_csv(path):
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
 
 
 def load_gpu(gpu_dir):
+    """Timing rows of the GPU stand-alone bench (scripts/gpu_bench.sh -> out/gpu/bench_*.csv:
+    series, grid, backend, matches, hypotheses, call_ms_median, ...). Other CSVs there (checks)
+    lack a hypotheses or time column and are skipped."""
     rows = []
     for path in sorted(glob.glob(os.path.join(gpu_dir, "*.csv"))):
         try:
             data = read_csv(path)
-        except (OSError, csv.Error) as e:
+        except (OSError, csv.Error, UnicodeDecodeError) as e:
             print(f"[bench_plot] skipping {path}: {e}", file=sys.stderr)
             continue
         if not data or "hypotheses" not in data[0]:
-            print(f"[bench_plot] skipping {path}: no 'hypotheses' column", file=sys.stderr)
             continue
-        tkey = next((k for k in ("ms_mean", "ms", "time_ms", "kernel_ms", "total_ms") if k in data[0]), None)
+        tkey = next((k for k in ("call_ms_median", "ms_mean", "ms_median", "ms", "time_ms") if k in data[0]), None)
         if tkey is None:
-            print(f"[bench_plot] skipping {path}: no time column (ms_mean, ms, time_ms, kernel_ms)", file=sys.stderr)
             continue
         name = os.path.splitext(os.path.basename(path))[0]
         for d in data:
             try:
-                rows.append({"method": d.get("method") or name, "backend": d.get("backend") or "cuda",
+                grid = d.get("grid") or ""
+                rows.append({"method": d.get("method") or (f"{grid} voter" if grid else "voter"),
+                             "backend": d.get("backend") or "cuda",
                              "hypotheses": int(float(d["hypotheses"])),
                              "matches": int(float(d.get("matches") or 0)),
+                             "series": d.get("series") or "",
                              "ms_mean": float(d[tkey]), "source": name})
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, KeyError):
                 continue
     return rows
 
 
 def timing_plots(sweep_rows, gpu_rows, out):
-    allrows = [dict(r, source="cpu sweep") for r in sweep_rows] + gpu_rows
-    if not allrows:
+    """Left: time vs hypotheses; right: time vs matches. CPU sweep rows are whole estimators on
+    real matches; GPU-bench rows time the hypothesis voter alone (CPU gold and CUDA)."""
+    if not sweep_rows and not gpu_rows:
         return
-    # Time vs hypotheses (at the largest match count common to the sweep), per method/backend.
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    ax = axes[0]
-    curves = {}
-    for r in allrows:
-        if int(r["hypotheses"]) <= 0:
-            continue
-        curves.setdefault((r["method"], r["backend"], r["source"], int(r["matches"])), []).append(
-            (int(r["hypotheses"]), float(r["ms_mean"])))
-    if curves:
-        # One match count per (method, backend, source): the largest it has.
-        best = {}
-        for (m, b, s, n) in curves:
-            best[(m, b, s)] = max(best.get((m, b, s), 0), n)
-        for (m, b, s), n in sorted(best.items()):
-            pts = sorted(curves[(m, b, s, n)])
-            xs, ys = zip(*pts)
-            ax.plot(xs, ys, marker="o", label=f"{m} ({b}, {n} matches)" + ("" if s == "cpu sweep" else f" [{s}]"))
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("hypotheses per frame")
-        ax.set_ylabel("estimate time [ms]")
-        ax.set_title("estimation time vs hypotheses")
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
-    ax = axes[1]
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
     hyp_default = default_hypotheses(sweep_rows) if sweep_rows else 0
-    by_method = {}
-    for r in allrows:
-        h = int(r["hypotheses"])
-        if int(r["matches"]) <= 0 or (r["source"] == "cpu sweep" and h not in (0, hyp_default)):
-            continue
-        if r["source"] != "cpu sweep" and h != max(int(x["hypotheses"]) for x in allrows
-                                                    if x["source"] == r["source"] and x["method"] == r["method"]):
-            continue
-        by_method.setdefault((r["method"], r["backend"], r["source"]), []).append(
-            (int(r["matches"]), float(r["ms_mean"])))
-    for (m, b, s), pts in sorted(by_method.items(), key=lambda kv: method_key(kv[0][0])):
+    max_matches = max((int(r["matches"]) for r in sweep_rows), default=0)
+
+    def curve(ax, key, pts, label, style):
         pts = sorted(pts)
         if len(pts) < 2:
-            continue
+            return
         xs, ys = zip(*pts)
-        ax.plot(xs, ys, marker="o", label=f"{m} ({b})" + ("" if s == "cpu sweep" else f" [{s}]"))
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+        ax.plot(xs, ys, style, marker="o", label=label)
+
+    # Time vs hypotheses.
+    ax = axes[0]
+    for m in sorted({r["method"] for r in sweep_rows if int(r["hypotheses"]) > 0}, key=method_key):
+        pts = [(int(r["hypotheses"]), float(r["ms_mean"])) for r in sweep_rows
+               if r["method"] == m and int(r["matches"]) == max_matches and int(r["hypotheses"]) > 0]
+        curve(ax, "hypotheses", pts, f"{m} estimator (cpu, {max_matches} matches)", "-")
+    for key in sorted({(r["method"], r["backend"], r["source"]) for r in gpu_rows if r["series"] in ("", "hypotheses")}):
+        sel = [r for r in gpu_rows if (r["method"], r["backend"], r["source"]) == key and r["series"] in ("", "hypotheses")]
+        n = max(int(r["matches"]) for r in sel)
+        pts = [(int(r["hypotheses"]), float(r["ms_mean"])) for r in sel if int(r["matches"]) == n]
+        curve(ax, "hypotheses", pts, f"{key[0]} ({key[1]}, {n} matches) [{key[2]}]", "--")
+    ax.set_xlabel("hypotheses per frame")
+    ax.set_title("estimation time vs hypotheses")
+
+    # Time vs matches.
+    ax = axes[1]
+    for m in sorted({r["method"] for r in sweep_rows}, key=method_key):
+        pts = [(int(r["matches"]), float(r["ms_mean"])) for r in sweep_rows
+               if r["method"] == m and int(r["hypotheses"]) in (0, hyp_default)]
+        curve(ax, "matches", pts, f"{m} (cpu)", "-")
+    for key in sorted({(r["method"], r["backend"], r["source"]) for r in gpu_rows if r["series"] in ("", "matches")}):
+        sel = [r for r in gpu_rows if (r["method"], r["backend"], r["source"]) == key and r["series"] in ("", "matches")]
+        h = max(int(r["hypotheses"]) for r in sel)
+        pts = [(int(r["matches"]), float(r["ms_mean"])) for r in sel if int(r["hypotheses"]) == h]
+        curve(ax, "matches", pts, f"{key[0]} ({key[1]}, {h} hyp.) [{key[2]}]", "--")
     ax.set_xlabel("matches per frame pair")
-    ax.set_ylabel("estimate time [ms]")
-    ax.set_title(f"estimation time vs matches ({hyp_default} hypotheses for vote/paper)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    ax.set_title(f"estimation time vs matches (vote/paper: {hyp_default} hypotheses)")
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylabel("time per frame [ms]")
+        ax.grid(alpha=0.3, which="both")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(os.path.join(out, "timing_sweep.png"), dpi=110)
     plt.close(fig)
@@ -334,10 +320,9 @@ def main():
              f"estimation time ({a.machine})", os.path.join(a.out, "estimate_time.png"))
     line_plot(rows, methods, "outliers", "injected outlier fraction", os.path.join(a.out, "accuracy_vs_outliers.png"),
               "rendered drive: accuracy vs outlier ratio")
-    trans = translation_axis(rows)
-    line_plot(rows, methods, "translation", "frame stride" + (f" (translation per pair: {trans})" if trans else ""),
+    line_plot(rows, methods, "translation", "true translation per frame pair [m] (frame stride 1, 2, 3, 4)",
               os.path.join(a.out, "accuracy_vs_translation.png"), "rendered forward drive: accuracy vs translation",
-              xkey="stride")
+              xkey="true_trans_mean_m")
     timing_plots(sweep_rows, gpu_rows, a.out)
     pngs = sorted(os.path.basename(p) for p in glob.glob(os.path.join(a.out, "*.png")))
     print(f"[bench_plot] wrote results.csv, table.md, {', '.join(pngs)}" +
