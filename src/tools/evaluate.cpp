@@ -456,7 +456,11 @@ void injectOutliers(double fraction, uint64_t seed, double angle_per_px, FramePa
 /// Runs the front end over the sequence: one FramePair per (k - stride, k).
 std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings& settings,
                                    const Options& o) {
-  VisualGyro gyro(seq.camera, settings, [](const std::string& w) { std::cerr << "warning: " << w << "\n"; });
+  // Front end only: its own estimator never runs, so it stays on the CPU (no device set-up, no
+  // duplicate backend warning); the methods' estimators pick the requested backend.
+  VisualGyroSettings front_end_only = settings;
+  front_end_only.estimator.backend = "cpu";
+  VisualGyro gyro(seq.camera, front_end_only, [](const std::string& w) { std::cerr << "warning: " << w << "\n"; });
   std::vector<FramePair> pairs;
   const double angle_per_px = 1.0 / seq.camera.fx();
   bool have_previous = false;
