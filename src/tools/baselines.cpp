@@ -63,7 +63,11 @@ BaselineResult poseFromEssential(const cv::Mat& essential, const std::vector<cv:
   // With exactly five points OpenCV stacks several solutions; the first one is as good as any.
   cv::Mat e = essential.rowRange(0, 3).clone();
   cv::Mat r_cv, t_cv;
-  const int inliers = cv::recoverPose(e, p_prev, p_cur, cv::Mat::eye(3, 3, CV_64F), r_cv, t_cv, mask);
+  // recoverPose's short form drops points triangulated beyond 50 baselines as "far"; under pure
+  // rotation (EuRoC standing still, hand-held) every point is that far and the pose would be
+  // rejected although its rotation is fine. A huge limit keeps only the cheirality test.
+  cv::Mat points;
+  const int inliers = cv::recoverPose(e, p_prev, p_cur, cv::Mat::eye(3, 3, CV_64F), r_cv, t_cv, 1e6, mask, points);
   if (inliers < settings.min_inliers) {
     return invalid("recoverPose kept " + std::to_string(inliers) + " inliers (< " +
                    std::to_string(settings.min_inliers) + ")");
