@@ -1,0 +1,432 @@
+// Integration test of the visual_gyro node and nodelet (the same source runs against both:
+// visual_gyro_node.test and visual_gyro_nodelet.test). Publishes rendered frames with a known
+// rotation through image_transport + camera_info and checks what comes out. Every wait is bounded.
+//
+// The tests share one running node and run in order; each starts its stamps far after the previous
+// test's, so the node's gap reset (~max_gap) separates them.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <image_transport/image_transport.h>
+#include <opencv2/imgproc.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/image_encodings.h>
+
+#include "ros_conversions.h"
+#include "visual_gyro/RotationEstimate.h"
+#include "visual_gyro/renderer.h"
+#include "visual_gyro/rotation_estimator.h"
+
+namespace {
+
+using visual_gyro::RotationEstimate;
+namespace conv = visual_gyro::ros_conversions;
+constexpr double kDeg = M_PI / 180.0;
+
+std::string g_output_ns = "/visual_gyro";
+std::string g_image_topic = "/test_camera/image_raw";
+const char* kCameraFrame = "test_camera_optical";
+
+/// Waits until pred() holds or `timeout` seconds pass (the AsyncSpinner delivers the messages).
+bool waitFor(const std::function<bool()>& pred, double timeout) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (pred()) return true;
+    ros::WallDuration(0.005).sleep();
+  }
+  return pred();
+}
+
+visual_gyro::RenderSettings renderSettings() {
+  visual_gyro::RenderSettings s;
+  s.preset = "handheld";  // a room around the camera: rotation-only views are well textured
+  s.width = 320;
+  s.height = 240;
+  s.fx = s.fy = 250.0;
+  s.cx = 159.5;
+  s.cy = 119.5;
+  s.noise_sigma = 1.0;
+  return s;
+}
+
+/// Camera orientation (camera -> world) turning right by `yaw_deg` about the camera's +y (down).
+Eigen::Matrix3d yawOrientation(double yaw_deg) {
+  return Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitY()).toRotationMatrix();
+}
+
+/// The shared publisher, output subscribers and collected messages.
+class Harness {
+ public:
+  Harness() : it_(nh_) {
+    camera_pub_ = it_.advertiseCamera(g_image_topic, 5);
+    const auto s = renderSettings();
+    info_.width = s.width;
+    info_.height = s.height;
+    info_.distortion_model = "plumb_bob";
+    info_.D.assign(5, 0.0);
+    info_.K = {s.fx, 0, s.cx, 0, s.fy, s.cy, 0, 0, 1};
+    info_.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    info_.P = {s.fx, 0, s.cx, 0, 0, s.fy, s.cy, 0, 0, 0, 1, 0};
+    info_.header.frame_id = kCameraFrame;
+  }
+
+  void subscribeOutputs() {
+    imu_sub_ = nh_.subscribe(g_output_ns + "/imu", 100, &Harness::imuCb, this);
+    rotation_sub_ = nh_.subscribe(g_output_ns + "/rotation", 100, &Harness::rotationCb, this);
+    orientation_sub_ = nh_.subscribe(g_output_ns + "/orientation", 100, &Harness::orientationCb, this);
+  }
+  void unsubscribeOutputs() {
+    imu_sub_.shutdown();
+    rotation_sub_.shutdown();
+    orientation_sub_.shutdown();
+  }
+  int imageSubscribers() const { return static_cast<int>(camera_pub_.getNumSubscribers()); }
+
+  /// Publishes one frame; true when the node answered (one ~orientation per processed frame)
+  /// within `timeout` seconds.
+  bool send(const cv::Mat& image, const std::string& encoding, double stamp, double timeout = 10.0) {
+    sensor_msgs::Image msg;
+    msg.header.stamp.fromSec(stamp);
+    msg.header.frame_id = kCameraFrame;
+    msg.height = static_cast<uint32_t>(image.rows);
+    msg.width = static_cast<uint32_t>(image.cols);
+    msg.encoding = encoding;
+    msg.is_bigendian = 0;
+    msg.step = static_cast<uint32_t>(image.cols * image.elemSize());
+    msg.data.resize(static_cast<size_t>(msg.step) * image.rows);
+    for (int r = 0; r < image.rows; ++r)
+      std::memcpy(&msg.data[static_cast<size_t>(r) * msg.step], image.ptr(r), msg.step);
+    sensor_msgs::CameraInfo info = info_;
+    info.header.stamp = msg.header.stamp;
+    const int before = orientations();
+    camera_pub_.publish(msg, info);
+    return waitFor([&] { return orientations() > before; }, timeout);
+  }
+  bool sendGray(const cv::Mat& gray, double stamp, double timeout = 10.0) {
+    return send(gray, sensor_msgs::image_encodings::MONO8, stamp, timeout);
+  }
+
+  /// Waits until the node subscribed to the images (lazy subscription).
+  bool waitSubscribed(double timeout = 15.0) {
+    if (!waitFor([&] { return imageSubscribers() > 0; }, timeout)) return false;
+    ros::WallDuration(0.3).sleep();  // let the camera_info connection settle too
+    return true;
+  }
+
+  int orientations() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return static_cast<int>(orientation_msgs_.size());
+  }
+  std::vector<RotationEstimate> rotations() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return rotation_msgs_;
+  }
+  std::vector<sensor_msgs::Imu> imus() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return imu_msgs_;
+  }
+  std::vector<geometry_msgs::PoseStamped> orientationMsgs() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return orientation_msgs_;
+  }
+  void clear() {
+    std::lock_guard<std::mutex> l(mutex_);
+    rotation_msgs_.clear();
+    imu_msgs_.clear();
+    orientation_msgs_.clear();
+  }
+  /// Waits briefly for the ~rotation/~imu messages published just before the last ~orientation.
+  void settle() { ros::WallDuration(0.3).sleep(); }
+
+ private:
+  void imuCb(const sensor_msgs::ImuConstPtr& m) {
+    std::lock_guard<std::mutex> l(mutex_);
+    imu_msgs_.push_back(*m);
+  }
+  void rotationCb(const visual_gyro::RotationEstimateConstPtr& m) {
+    std::lock_guard<std::mutex> l(mutex_);
+    rotation_msgs_.push_back(*m);
+  }
+  void orientationCb(const geometry_msgs::PoseStampedConstPtr& m) {
+    std::lock_guard<std::mutex> l(mutex_);
+    orientation_msgs_.push_back(*m);
+  }
+
+  ros::NodeHandle nh_;
+  image_transport::ImageTransport it_;
+  image_transport::CameraPublisher camera_pub_;
+  sensor_msgs::CameraInfo info_;
+  ros::Subscriber imu_sub_, rotation_sub_, orientation_sub_;
+  std::mutex mutex_;
+  std::vector<RotationEstimate> rotation_msgs_;
+  std::vector<sensor_msgs::Imu> imu_msgs_;
+  std::vector<geometry_msgs::PoseStamped> orientation_msgs_;
+};
+
+Harness* g_harness = nullptr;
+
+/// Rendered views of a right turn, 1 degree per frame, cached.
+const std::vector<cv::Mat>& turnImages() {
+  static std::vector<cv::Mat> images;
+  if (images.empty()) {
+    const auto s = renderSettings();
+    for (int k = 0; k < 8; ++k) images.push_back(visual_gyro::renderView(s, yawOrientation(k), Eigen::Vector3d::Zero()));
+  }
+  return images;
+}
+
+bool outputAdvertised() {
+  ros::master::V_TopicInfo topics;
+  if (!ros::master::getTopics(topics)) return false;
+  for (const auto& t : topics)
+    if (t.name == g_output_ns + "/imu") return true;
+  return false;
+}
+
+const RotationEstimate* findRotation(const std::vector<RotationEstimate>& v, double stamp) {
+  for (const auto& m : v)
+    if (std::abs(m.header.stamp.toSec() - stamp) < 1e-6) return &m;
+  return nullptr;
+}
+
+// Must run first: nothing subscribes to the outputs yet.
+TEST(VisualGyroRos, SubscribesToImagesOnlyWhileOutputsHaveSubscribers) {
+  Harness& h = *g_harness;
+  ASSERT_TRUE(waitFor(outputAdvertised, 30.0)) << g_output_ns << "/imu was never advertised: is the node running?";
+  ros::WallDuration(1.0).sleep();
+  EXPECT_EQ(h.imageSubscribers(), 0) << "the node subscribed to the images with no output subscriber";
+
+  h.subscribeOutputs();
+  EXPECT_TRUE(waitFor([&] { return h.imageSubscribers() > 0; }, 15.0))
+      << "no image subscription after subscribing to the outputs";
+  h.unsubscribeOutputs();
+  EXPECT_TRUE(waitFor([&] { return h.imageSubscribers() == 0; }, 15.0))
+      << "the image subscription stayed after the last output subscriber left";
+
+  // A single output is enough.
+  ros::NodeHandle nh;
+  const boost::function<void(const sensor_msgs::ImuConstPtr&)> ignore = [](const sensor_msgs::ImuConstPtr&) {};
+  ros::Subscriber only_imu = nh.subscribe<sensor_msgs::Imu>(g_output_ns + "/imu", 1, ignore);
+  EXPECT_TRUE(waitFor([&] { return h.imageSubscribers() > 0; }, 15.0));
+  only_imu.shutdown();
+  EXPECT_TRUE(waitFor([&] { return h.imageSubscribers() == 0; }, 15.0));
+}
+
+TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
+  Harness& h = *g_harness;
+  h.subscribeOutputs();
+  ASSERT_TRUE(h.waitSubscribed()) << "the node did not subscribe to " << g_image_topic;
+  h.clear();
+  const auto& images = turnImages();
+  const double t0 = 100.0, dt = 0.1;
+  for (size_t k = 0; k < images.size(); ++k)
+    ASSERT_TRUE(h.sendGray(images[k], t0 + k * dt)) << "no answer to frame " << k;
+  h.settle();
+
+  const auto rotations = h.rotations();
+  const auto imus = h.imus();
+  ASSERT_EQ(rotations.size(), images.size() - 1) << "one RotationEstimate per frame after the first";
+  const Eigen::Matrix3d r_true = yawOrientation(1.0);  // R_{k-1}^T R_k
+  const Eigen::Vector3d omega_true(0.0, 1.0 * kDeg / dt, 0.0);
+  for (size_t k = 1; k < images.size(); ++k) {
+    SCOPED_TRACE("frame " + std::to_string(k));
+    const RotationEstimate* m = findRotation(rotations, t0 + k * dt);
+    ASSERT_NE(m, nullptr);
+    EXPECT_TRUE(m->valid) << m->status;
+    EXPECT_EQ(m->header.frame_id, kCameraFrame);
+    EXPECT_NEAR(m->previous_stamp.toSec(), t0 + (k - 1) * dt, 1e-6);
+    EXPECT_NEAR(m->dt, dt, 1e-6);
+    EXPECT_NEAR(m->yaw / kDeg, 1.0, 0.15) << "a right turn is a positive yaw";
+    EXPECT_NEAR(m->pitch / kDeg, 0.0, 0.15);
+    EXPECT_NEAR(m->roll / kDeg, 0.0, 0.15);
+    const Eigen::Matrix3d r = conv::fromMsg(m->rotation).toRotationMatrix();
+    EXPECT_LT(visual_gyro::rotationAngleBetween(r, r_true) / kDeg, 0.15);
+    const Eigen::Vector3d omega(m->angular_velocity.x, m->angular_velocity.y, m->angular_velocity.z);
+    EXPECT_LT((omega - omega_true).norm(), 0.03) << "omega " << omega.transpose() << " true " << omega_true.transpose();
+    EXPECT_GT(m->angular_velocity.y, 0.0);
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_GT(m->angular_velocity_covariance[4 * i], 0.0);
+      EXPECT_GT(m->rotation_covariance[4 * i], 0.0);
+      for (int j = 0; j < 3; ++j) {
+        EXPECT_NEAR(m->angular_velocity_covariance[3 * i + j], m->angular_velocity_covariance[3 * j + i], 1e-12);
+        EXPECT_NEAR(m->angular_velocity_covariance[3 * i + j], m->rotation_covariance[3 * i + j] / (dt * dt),
+                    1e-9 + 1e-6 * std::abs(m->angular_velocity_covariance[3 * i + j]));
+      }
+    }
+    EXPECT_GT(m->features, 0u);
+    EXPECT_GE(m->matches, 8u);
+    EXPECT_GT(m->hypotheses, 0u);
+    EXPECT_GT(m->winning_votes, 0u);
+    EXPECT_TRUE(m->backend == "cpu" || m->backend == "cuda") << m->backend;
+    EXPECT_FALSE(m->method.empty());
+    EXPECT_GT(m->total_ms, 0.0);
+    EXPECT_GE(m->latency_ms, m->total_ms * 0.5);
+  }
+
+  ASSERT_EQ(imus.size(), rotations.size()) << "one Imu per valid estimate";
+  for (const auto& imu : imus) {
+    const RotationEstimate* m = findRotation(rotations, imu.header.stamp.toSec());
+    ASSERT_NE(m, nullptr) << "Imu stamp " << imu.header.stamp << " matches no RotationEstimate";
+    EXPECT_EQ(imu.header.frame_id, kCameraFrame);
+    EXPECT_EQ(imu.orientation_covariance[0], -1.0) << "REP 145: no orientation";
+    EXPECT_EQ(imu.linear_acceleration_covariance[0], -1.0) << "REP 145: no linear acceleration";
+    EXPECT_DOUBLE_EQ(imu.angular_velocity.x, m->angular_velocity.x);
+    EXPECT_DOUBLE_EQ(imu.angular_velocity.y, m->angular_velocity.y);
+    EXPECT_DOUBLE_EQ(imu.angular_velocity.z, m->angular_velocity.z);
+    for (int i = 0; i < 9; ++i) EXPECT_DOUBLE_EQ(imu.angular_velocity_covariance[i], m->angular_velocity_covariance[i]);
+  }
+
+  // The integrated orientation turned right by 7 degrees.
+  const auto poses = h.orientationMsgs();
+  ASSERT_EQ(poses.size(), images.size());
+  EXPECT_EQ(poses.back().header.frame_id, "visual_gyro_world");
+  const Eigen::Matrix3d integrated = conv::fromMsg(poses.back().pose.orientation).toRotationMatrix();
+  EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, yawOrientation(7.0)) / kDeg, 0.5);
+  EXPECT_LT(visual_gyro::rotationAngleBetween(conv::fromMsg(poses.front().pose.orientation).toRotationMatrix(),
+                                              Eigen::Matrix3d::Identity()), 1e-9);
+}
+
+TEST(VisualGyroRos, JumpBackInTimeAndLongGapReset) {
+  Harness& h = *g_harness;
+  h.subscribeOutputs();
+  ASSERT_TRUE(h.waitSubscribed());
+  const auto& images = turnImages();
+  const double t0 = 200.0;
+  ASSERT_TRUE(h.sendGray(images[0], t0));
+  ASSERT_TRUE(h.sendGray(images[1], t0 + 0.1));
+  ASSERT_TRUE(h.sendGray(images[2], t0 + 0.2));
+  h.settle();
+  h.clear();
+
+  // Back in time (a looping bag): processed as a first frame, no estimate, orientation restarts.
+  const double t_back = t0 - 50.0;
+  ASSERT_TRUE(h.sendGray(images[3], t_back)) << "the frame after a jump back must still be processed";
+  ASSERT_TRUE(h.sendGray(images[4], t_back + 0.1));
+  h.settle();
+  auto rotations = h.rotations();
+  EXPECT_EQ(findRotation(rotations, t_back), nullptr) << "an estimate across a jump back in time";
+  const RotationEstimate* after = findRotation(rotations, t_back + 0.1);
+  ASSERT_NE(after, nullptr);
+  EXPECT_NEAR(after->previous_stamp.toSec(), t_back, 1e-6);
+  EXPECT_TRUE(after->valid) << after->status;
+  EXPECT_NEAR(after->yaw / kDeg, 1.0, 0.15);
+  auto poses = h.orientationMsgs();
+  ASSERT_EQ(poses.size(), 2u);
+  EXPECT_LT(visual_gyro::rotationAngleBetween(conv::fromMsg(poses[0].pose.orientation).toRotationMatrix(),
+                                              Eigen::Matrix3d::Identity()), 1e-9)
+      << "the integrated orientation did not restart at the reset";
+
+  // A gap over ~max_gap (1 s): reset as well.
+  h.clear();
+  const double t_gap = t_back + 0.1 + 5.0;
+  ASSERT_TRUE(h.sendGray(images[5], t_gap));
+  ASSERT_TRUE(h.sendGray(images[6], t_gap + 0.1));
+  h.settle();
+  rotations = h.rotations();
+  EXPECT_EQ(findRotation(rotations, t_gap), nullptr) << "an estimate across a 5 s gap";
+  ASSERT_NE(findRotation(rotations, t_gap + 0.1), nullptr);
+  EXPECT_NEAR(findRotation(rotations, t_gap + 0.1)->previous_stamp.toSec(), t_gap, 1e-6);
+}
+
+TEST(VisualGyroRos, EqualStampIsSkipped) {
+  Harness& h = *g_harness;
+  h.subscribeOutputs();
+  ASSERT_TRUE(h.waitSubscribed());
+  const auto& images = turnImages();
+  const double t0 = 300.0;
+  ASSERT_TRUE(h.sendGray(images[0], t0));
+  ASSERT_TRUE(h.sendGray(images[1], t0 + 0.1));
+  h.settle();
+  h.clear();
+  EXPECT_FALSE(h.sendGray(images[2], t0 + 0.1, 1.5)) << "a frame with the previous frame's stamp was processed";
+  ASSERT_TRUE(h.sendGray(images[2], t0 + 0.2));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 1u);
+  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0 + 0.1, 1e-6);
+  EXPECT_NEAR(rotations[0].yaw / kDeg, 1.0, 0.15);
+}
+
+TEST(VisualGyroRos, ColourAndSixteenBitEncodingsAreConverted) {
+  Harness& h = *g_harness;
+  h.subscribeOutputs();
+  ASSERT_TRUE(h.waitSubscribed());
+  const auto& images = turnImages();
+  const double t0 = 400.0;
+  h.clear();
+  ASSERT_TRUE(h.sendGray(images[0], t0));
+  cv::Mat bgr, rgba, mono16;
+  cv::cvtColor(images[1], bgr, cv::COLOR_GRAY2BGR);
+  cv::cvtColor(images[2], rgba, cv::COLOR_GRAY2RGBA);
+  images[3].convertTo(mono16, CV_16U, 16.0);  // a 12-bit camera
+  ASSERT_TRUE(h.send(bgr, sensor_msgs::image_encodings::BGR8, t0 + 0.1));
+  ASSERT_TRUE(h.send(rgba, sensor_msgs::image_encodings::RGBA8, t0 + 0.2));
+  ASSERT_TRUE(h.send(mono16, sensor_msgs::image_encodings::MONO16, t0 + 0.3));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 3u);
+  for (const auto& m : rotations) {
+    EXPECT_TRUE(m.valid) << m.status;
+    EXPECT_NEAR(m.yaw / kDeg, 1.0, 0.15);
+  }
+}
+
+TEST(VisualGyroRos, UnsupportedEncodingIsSkippedAndTheNodeKeepsRunning) {
+  Harness& h = *g_harness;
+  h.subscribeOutputs();
+  ASSERT_TRUE(h.waitSubscribed());
+  ros::NodeHandle nh;
+  std::atomic<bool> diagnosed{false};
+  ros::Subscriber diag_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&diagnosed](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
+        for (const auto& s : a->status)
+          for (const auto& kv : s.values)
+            if (kv.key == "Skipped: encoding 32FC1" && kv.value != "0") diagnosed = true;
+      });
+  const auto& images = turnImages();
+  const double t0 = 500.0;
+  h.clear();
+  ASSERT_TRUE(h.sendGray(images[0], t0));
+  cv::Mat float_image;
+  images[1].convertTo(float_image, CV_32F, 1.0 / 255.0);
+  EXPECT_FALSE(h.send(float_image, sensor_msgs::image_encodings::TYPE_32FC1, t0 + 0.1, 1.5))
+      << "a 32FC1 image gave an output";
+  // Still running: the next good frame is estimated against the last good one.
+  ASSERT_TRUE(h.sendGray(images[2], t0 + 0.2)) << "the node stopped answering after a bad encoding";
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 1u);
+  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0, 1e-6);
+  EXPECT_TRUE(rotations[0].valid) << rotations[0].status;
+  EXPECT_NEAR(rotations[0].yaw / kDeg, 2.0, 0.2);
+  EXPECT_TRUE(waitFor([&] { return diagnosed.load(); }, 5.0))
+      << "/diagnostics never reported the skipped 32FC1 frame";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_visual_gyro_ros");
+  ros::NodeHandle pnh("~");
+  pnh.param<std::string>("output_ns", g_output_ns, g_output_ns);
+  pnh.param<std::string>("image_topic", g_image_topic, g_image_topic);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  Harness harness;
+  g_harness = &harness;
+  const int result = RUN_ALL_TESTS();
+  spinner.stop();
+  g_harness = nullptr;
+  return result;
+}

@@ -1,0 +1,27 @@
+# ROS tests of visual_gyro (included from the top-level CMakeLists.txt when testing is enabled).
+# All run with `catkin_make run_tests` (or one: catkin_make run_tests_visual_gyro_rostest_test_ros_hz.test).
+find_package(rostest REQUIRED)
+find_package(roslaunch REQUIRED)
+
+# One gtest-with-ROS source, run against the node and against the nodelet.
+add_rostest_gtest(test_visual_gyro_ros test/ros/visual_gyro_node.test test/ros/test_visual_gyro_ros.cpp)
+target_link_libraries(test_visual_gyro_ros visual_gyro_ros_tools ${catkin_LIBRARIES})
+add_rostest(test/ros/visual_gyro_nodelet.test DEPENDENCIES test_visual_gyro_ros visual_gyro_nodelet)
+
+# Replay of a bag made from ../shared/data/kitti_turn (skipped with a message when absent).
+add_rostest_gtest(test_replay_ros test/ros/replay_kitti.test test/ros/test_replay_ros.cpp test/test_support.cpp)
+target_link_libraries(test_replay_ros visual_gyro_ros_tools ${catkin_LIBRARIES})
+target_include_directories(test_replay_ros PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/test)
+target_compile_definitions(test_replay_ros PRIVATE VISUAL_GYRO_DEFAULT_DATA="${VISUAL_GYRO_DEFAULT_DATA}")
+
+# Publication rates (hztest) of ~imu and /diagnostics, fed by a rendered camera.
+add_executable(publish_rendered EXCLUDE_FROM_ALL test/ros/publish_rendered.cpp)
+target_link_libraries(publish_rendered visual_gyro_ros_tools ${catkin_LIBRARIES})
+if(TARGET tests)
+  add_dependencies(tests publish_rendered)
+endif()
+add_rostest(test/ros/hz.test DEPENDENCIES publish_rendered visual_gyro_node visual_gyro_nodelet)
+
+# Every launch file resolves (packages, nodes, args); rviz is in a group that is off by default.
+roslaunch_add_file_check(launch/visual_gyro.launch)
+roslaunch_add_file_check(launch/replay.launch IGNORE_UNSET_ARGS)
