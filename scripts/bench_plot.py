@@ -83,6 +83,12 @@ def write_table(rows, methods, path, machine, sweep_rows):
     out.append(f"Machine: {machine}. Same matches for every method within a row; invalid estimates "
                "count as identity rotation. Rotation error = angle of R_est^-1 R_true per frame "
                "pair; yaw about the camera's vertical axis.\n")
+    for (group, label), by_method in runs.items():
+        gyro = next(iter(by_method.values())).get("gyro_mean_rate_dps")
+        if gyro is not None:
+            out.append(f"{label}: the reference is the raw gyro as the loader integrates it (bias not removed; "
+                       f"it reads {float(gyro):.2f} deg/s on average), so its rotation errors mostly measure that "
+                       "bias; the mean estimated rate is the telling figure there.\n")
     out.append("## Rotation error RMSE / max per frame pair [deg]\n")
     out.append("| sequence | " + " | ".join(methods) + " |")
     out.append("|---" * (len(methods) + 1) + "|")
