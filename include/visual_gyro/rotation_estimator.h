@@ -41,7 +41,7 @@ struct EstimatorSettings {
   double rotation_window_deg = 6.0;   ///< half width of the histogram around the prior
   double wide_window_deg = 30.0;      ///< half width of the fallback histogram (prior failed)
   double max_angle_change_deg = 0.5;  ///< triples whose pairwise angles change more are voted out
-  int candidates = 3;                 ///< fullest cells verified against all matches
+  int candidates = 2;                 ///< fullest cells verified against all matches
   double inlier_threshold_deg = 0.1;  ///< epipolar / rotation residual of an inlier
   bool use_prior = true;              ///< centre the vote window on the previous rotation
   int refine_iterations = 10;         ///< Gauss-Newton iterations of the refinement

@@ -322,7 +322,12 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
                             prior.rotation_vector.norm() < 60.0 * kDeg;
   RotationResult result;
   VerifiedRotation best;
+  std::vector<Eigen::Vector3d> considered;
   auto consider = [&](const Eigen::Vector3d& rotation_vector) {
+    // Candidates within half a cell of one already verified would verify to the same inliers.
+    for (const Eigen::Vector3d& c : considered)
+      if ((c - rotation_vector).norm() < 0.5 * settings_.rotation_bin_deg * kDeg) return;
+    considered.push_back(rotation_vector);
     const VerifiedRotation v = verifyRotation(previous, current, expMap(rotation_vector), threshold, seed);
     if (v.inliers > best.inliers) best = v;
   };
@@ -356,8 +361,17 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   }
   if (best.inliers == 0) return invalidResult("no candidate rotation (all triples degenerate)");
 
-  const RefinedRotation refined =
-      refineRotation(previous, current, best, threshold, settings_.refine_iterations);
+  RefinedRotation refined = refineRotation(previous, current, best, threshold, settings_.refine_iterations);
+  // Local optimisation: the refined rotation is better than the voted one, so the translation
+  // search on it finds a better epipole and more inliers; repeat while the inlier set grows.
+  for (int round = 1; round <= 1; ++round) {
+    const VerifiedRotation again = verifyRotation(previous, current, refined.rotation, threshold, seed + round);
+    if (again.inliers <= refined.inliers) break;
+    const RefinedRotation next =
+        refineRotation(previous, current, again, threshold, settings_.refine_iterations, true);
+    if (next.inliers <= refined.inliers) break;
+    refined = next;
+  }
   fillAngles(refined.rotation, &result);
   result.covariance = refined.covariance;
   for (int k = 0; k < 3; ++k)

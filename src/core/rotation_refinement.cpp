@@ -46,6 +46,38 @@ Eigen::Matrix<double, 1, 5> epipolarJacobian(const Eigen::Vector3d& p, const Eig
   return J;
 }
 
+// Angular distance of the match from its epipolar plane: the algebraic residual t.(p x Rc) divided
+// by the symmetric Sampson-style norm of its gradient. The algebraic residual shrinks with the
+// distance of the bearings from the epipole, so wrong matches near the focus of expansion pass an
+// algebraic gate as easily as right ones; the geometric residual treats every match alike.
+double epipolarScale(const Eigen::Vector3d& t, const Eigen::Vector3d& p, const Eigen::Vector3d& rc) {
+  const double tp = t.dot(p), trc = t.dot(rc);  // |t x v|^2 = 1 - (t.v)^2 for unit vectors
+  return 1.0 / std::sqrt(std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6));
+}
+
+// Tukey's biweight with cut-off c: matches near the gate, most likely wrong ones that slipped in,
+// lose their influence smoothly instead of pulling with a constant (Huber) force.
+double tukeyWeight(double r, double c) {
+  const double u = r / c;
+  return std::abs(u) >= 1.0 ? 0.0 : (1.0 - u * u) * (1.0 - u * u);
+}
+double tukeyCost(double r, double c) {
+  const double u = std::min(1.0, (r / c) * (r / c));
+  return c * c / 6.0 * (1.0 - (1.0 - u) * (1.0 - u) * (1.0 - u));
+}
+
+// epipolarScale(t, p, rc) * |t . normal| < gate without a square root or a division (this runs
+// for every match of every translation sample). The scale is >= 1 for unit vectors, so a large
+// algebraic residual rejects at once.
+inline bool withinEpipolarGate(const Eigen::Vector3d& t, const Eigen::Vector3d& p,
+                               const Eigen::Vector3d& rc, const Eigen::Vector3d& normal, double gate) {
+  const double algebraic = t.dot(normal);
+  if (std::abs(algebraic) >= gate) return false;
+  const double tp = t.dot(p), trc = t.dot(rc);
+  const double squared = std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6);  // |t x v|^2 = 1 - (t.v)^2
+  return algebraic * algebraic < gate * gate * squared;
+}
+
 double huberWeight(double r, double k) {
   const double a = std::abs(r);
   return a <= k ? 1.0 : k / a;
@@ -73,7 +105,8 @@ double adaptiveGate(const std::vector<Eigen::Vector3d>& previous,
     const Eigen::Vector3d rc = R * current[i];
     if (!sameHemisphere(previous[i], rc)) continue;
     const Eigen::Vector3d normal = previous[i].cross(rc);
-    const double r = t != nullptr ? std::abs(t->dot(normal)) : normal.norm();
+    const double r = t != nullptr ? std::abs(t->dot(normal)) * epipolarScale(*t, previous[i], rc)
+                                  : normal.norm();
     if (r < threshold) residuals.push_back(r);
   }
   if (residuals.size() < 10) return threshold;
@@ -140,12 +173,19 @@ RefinedRotation refinePureRotation(const std::vector<Eigen::Vector3d>& previous,
   return out;
 }
 
+struct NormalEquations {
+  Eigen::Matrix<double, 5, 5> A;
+  Eigen::Matrix<double, 5, 1> g;
+  Eigen::Matrix<double, 3, 2> B;  // tangent basis of t the step's last two entries refer to
+  double cost = 0.0;
+  int used = 0;
+};
+
 RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
                               const std::vector<Eigen::Vector3d>& current, Eigen::Matrix3d R,
-                              Eigen::Vector3d t, double threshold, int iterations) {
+                              Eigen::Vector3d t, double threshold, int iterations, bool warm) {
   const size_t n = previous.size();
   RefinedRotation out;
-  Eigen::Matrix<double, 5, 5> A;
   double lambda = 1e-6;
   // The inlier gate is fixed per outer round (residuals of the round's start), so each
   // Levenberg-Marquardt step compares costs over the same matches.
@@ -156,73 +196,81 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
   // constraint almost as well as a right one, and the yaw/lateral-translation ambiguity turns the
   // few that slip through a fixed gate into a visible rotation bias.
   std::vector<char> gate(n);
-  double gate_width = 4.0 * threshold;
-  for (int round = 0; round < 3; ++round) {
-    if (round > 0) gate_width = adaptiveGate(previous, current, R, &t, threshold);
+  const double schedule[] = {6.0 * threshold, 2.0 * threshold, 0.0};
+  const int rounds = static_cast<int>(sizeof(schedule) / sizeof(schedule[0]));
+  // A warm start (already refined once) is inside the basin: only the adaptive rounds remain.
+  for (int round = warm ? rounds - 1 : 0; round < rounds; ++round) {
+    double gate_width = schedule[round];
+    if (gate_width == 0.0) gate_width = adaptiveGate(previous, current, R, &t, threshold);
+    // The wide early gates only need to move the start into the basin: a few steps suffice.
+    const int round_iterations = round + 1 < rounds ? std::min(iterations, 2) : iterations;
     for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d rc = R * current[i];
-      gate[i] = std::abs(t.dot(previous[i].cross(rc))) < gate_width && sameHemisphere(previous[i], rc);
+      gate[i] = withinEpipolarGate(t, previous[i], rc, previous[i].cross(rc), gate_width) &&
+                sameHemisphere(previous[i], rc);
     }
-    for (int it = 0; it < iterations; ++it) {
-      const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
-      A.setZero();
-      Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
-      double current_cost = 0.0;
-      int used = 0;
+    // One pass gives both the cost at (R, t) and the normal equations for the next step, so an
+    // accepted Levenberg-Marquardt step costs one pass over the matches, not two.
+    auto accumulate = [&](const Eigen::Matrix3d& Rx, const Eigen::Vector3d& tx, NormalEquations* ne) {
+      const Eigen::Matrix<double, 3, 2> B = tangentBasis(tx);
+      ne->A.setZero();
+      ne->g.setZero();
+      ne->cost = 0.0;
+      ne->used = 0;
       for (size_t i = 0; i < n; ++i) {
         if (!gate[i]) continue;
-        const Eigen::Vector3d rc = R * current[i];
+        const Eigen::Vector3d rc = Rx * current[i];
         const Eigen::Vector3d normal = previous[i].cross(rc);
-        const double r = t.dot(normal);
-        const double w = huberWeight(r, 0.5 * threshold);
-        const Eigen::Matrix<double, 1, 5> J = epipolarJacobian(previous[i], current[i], R, t, normal, B);
-        A.noalias() += (w * J.transpose()) * J;
-        g += w * J.transpose() * r;
-        current_cost += w * r * r;
-        ++used;
+        // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
+        const double scale = epipolarScale(tx, previous[i], rc);
+        const double r = tx.dot(normal) * scale;
+        const double w = tukeyWeight(r, gate_width);
+        ne->cost += tukeyCost(r, gate_width);
+        ++ne->used;
+        if (w == 0.0) continue;
+        const Eigen::Matrix<double, 1, 5> J = scale * epipolarJacobian(previous[i], current[i], Rx, tx, normal, B);
+        ne->A.noalias() += (w * J.transpose()) * J;
+        ne->g.noalias() += (w * r) * J.transpose();
       }
-      if (used < 6) break;
+      ne->B = B;
+    };
+    NormalEquations here, there;
+    accumulate(R, t, &here);
+    for (int it = 0; it < round_iterations && here.used >= 6; ++it) {
       // Levenberg-Marquardt damping: under (nearly) pure rotation the translation direction is
       // unobservable and J^T W J is singular in those two columns.
-      bool improved = false;
-      for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
-        Eigen::Matrix<double, 5, 5> damped = A;
-        damped.diagonal() += lambda * (A.diagonal().array() + 1e-12).matrix();
-        const Eigen::Matrix<double, 5, 1> step = damped.ldlt().solve(-g);
-        if (!step.allFinite()) break;
-        const Eigen::Matrix3d R_new = R * expMap(step.head<3>());
-        const Eigen::Vector3d t_new = (t + B * step.tail<2>()).normalized();
-        double new_cost = 0.0;
-        for (size_t i = 0; i < n; ++i) {
-          if (!gate[i]) continue;
-          const double r = t_new.dot(previous[i].cross(R_new * current[i]));
-          new_cost += huberWeight(r, 0.5 * threshold) * r * r;
-        }
-        if (new_cost <= current_cost) {
-          improved = true;
-          const bool converged = step.norm() < 1e-9;  // 6e-8 deg: far below any noise
-          R = R_new;
-          t = t_new;
-          lambda = std::max(1e-9, lambda * 0.3);
-          if (converged) it = iterations;
-        } else {
-          lambda *= 10.0;
-        }
+      Eigen::Matrix<double, 5, 5> damped = here.A;
+      damped.diagonal() += lambda * (here.A.diagonal().array() + 1e-12).matrix();
+      const Eigen::Matrix<double, 5, 1> step = damped.ldlt().solve(-here.g);
+      if (!step.allFinite()) break;
+      const Eigen::Matrix3d R_new = R * expMap(step.head<3>());
+      const Eigen::Vector3d t_new = (t + here.B * step.tail<2>()).normalized();
+      accumulate(R_new, t_new, &there);
+      if (there.cost <= here.cost) {
+        R = R_new;
+        t = t_new;
+        std::swap(here, there);
+        lambda = std::max(1e-9, lambda * 0.3);
+        if (step.norm() < 1e-6) break;  // 6e-5 deg: far below any noise
+      } else {
+        lambda *= 10.0;
+        if (lambda > 1e6) break;
       }
-      if (!improved) break;
     }
   }
   // Covariance: sigma^2 (J^T W J)^-1 at the solution, over the final inliers.
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
-  A.setZero();
+  Eigen::Matrix<double, 5, 5> A = Eigen::Matrix<double, 5, 5>::Zero();
   double sum_sq = 0.0;
   int inliers = 0;
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d rc = R * current[i];
     const Eigen::Vector3d normal = previous[i].cross(rc);
-    const double r = t.dot(normal);
+    const double scale = epipolarScale(t, previous[i], rc);
+    const double r = t.dot(normal) * scale;
     if (std::abs(r) >= threshold || !sameHemisphere(previous[i], rc)) continue;
-    const Eigen::Matrix<double, 1, 5> J = epipolarJacobian(previous[i], current[i], R, t, normal, B);
+    const Eigen::Matrix<double, 1, 5> J =
+        scale * epipolarJacobian(previous[i], current[i], R, t, normal, B);
     A += J.transpose() * J;
     sum_sq += r * r;
     ++inliers;
@@ -247,11 +295,12 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
   const size_t n = previous.size();
   VerifiedRotation out;
   out.rotation = rotation;
-  std::vector<Eigen::Vector3d> normals(n);
+  std::vector<Eigen::Vector3d> normals(n), rotated(n);
   std::vector<char> usable(n);
   std::vector<size_t> moving;  // matches a pure rotation does not explain: they carry t
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d rc = rotation * current[i];
+    rotated[i] = rc;
     normals[i] = previous[i].cross(rc);
     usable[i] = sameHemisphere(previous[i], rc);
     if (!usable[i]) continue;
@@ -264,21 +313,50 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
     }
   }
   out.epipolar_inliers = out.rotation_inliers;
+  auto countInliers = [&](const Eigen::Vector3d& t) {
+    int count = 0;
+    for (size_t i = 0; i < n; ++i)
+      count += usable[i] && withinEpipolarGate(t, previous[i], rotated[i], normals[i], threshold);
+    return count;
+  };
   if (moving.size() >= 2) {
     uint64_t state = seed ^ 0x5452414E534C4154ull;  // "TRANSLAT"
-    const int trials = 32;  // 2-point samples among the moving matches: plenty at >= 30 % inliers
+    // 2-point samples among the moving matches, stopped adaptively: once the best translation
+    // explains a fraction w of them, log(0.01) / log(1 - w^2) samples find a clean pair with 99 %
+    // probability (at most 64, enough for 50 % wrong matches); the best is then refitted.
+    int trials = 64;
     for (int trial = 0; trial < trials; ++trial) {
       const size_t a = moving[nextRandom(&state) % moving.size()];
       const size_t b = moving[nextRandom(&state) % moving.size()];
       const Eigen::Vector3d t_raw = normals[a].cross(normals[b]);
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();
-      int count = 0;
-      for (size_t i = 0; i < n; ++i) count += usable[i] && std::abs(t.dot(normals[i])) < threshold;
+      const int count = countInliers(t);
       if (count > out.epipolar_inliers) {
         out.epipolar_inliers = count;
         out.translation = t;
+        const double w = std::clamp(static_cast<double>(count - out.rotation_inliers) / moving.size(), 0.01, 0.99);
+        trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
+    }
+    // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
+    // inliers (each normal scaled to its angular residual), repeated while the support grows.
+    for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
+      Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+      const Eigen::Vector3d& t = out.translation;
+      for (size_t i = 0; i < n; ++i) {
+        if (!usable[i]) continue;
+        const double scale = epipolarScale(t, previous[i], rotated[i]);
+        if (std::abs(t.dot(normals[i])) * scale >= threshold) continue;
+        const Eigen::Vector3d m = scale * normals[i];
+        M += m * m.transpose();
+      }
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
+      const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
+      const int count = countInliers(refitted);
+      if (count <= out.epipolar_inliers) break;
+      out.epipolar_inliers = count;
+      out.translation = refitted;
     }
   }
   out.inliers = std::max(out.epipolar_inliers, out.rotation_inliers);
@@ -287,7 +365,8 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
 
 RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
                                const std::vector<Eigen::Vector3d>& current,
-                               const VerifiedRotation& start, double threshold, int iterations) {
+                               const VerifiedRotation& start, double threshold, int iterations,
+                               bool warm) {
   // Model selection: translation is only worth estimating when it explains clearly more matches
   // than a pure rotation does; otherwise its two extra degrees of freedom just absorb rotation
   // error (the rotation/translation ambiguity of narrow fields of view).
@@ -295,7 +374,7 @@ RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
   const int extra = start.epipolar_inliers - start.rotation_inliers;
   const bool pure = start.translation.isZero() || extra < 0.15 * start.epipolar_inliers;
   if (pure) return refinePureRotation(previous, current, start.rotation, threshold, iterations);
-  return refineGeneral(previous, current, start.rotation, start.translation, threshold, iterations);
+  return refineGeneral(previous, current, start.rotation, start.translation, threshold, iterations, warm);
 }
 
 }  // namespace visual_gyro

@@ -15,13 +15,15 @@ struct VerifiedRotation {
   /// matches carry no translation information.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   int inliers = 0;           ///< max of the two counts below
-  int epipolar_inliers = 0;  ///< |t . (b_prev x R b_cur)| < threshold
+  int epipolar_inliers = 0;  ///< angular distance from the epipolar plane < threshold
   int rotation_inliers = 0;  ///< |b_prev x R b_cur| < threshold (pure rotation explains them)
 };
 
 /// Counts the matches consistent with `rotation`, both as a pure rotation and as a rotation plus
 /// the translation direction found by a small 2-point RANSAC on the epipolar-plane normals
-/// n_i = b_prev_i x R b_cur_i, which must all be orthogonal to the translation. threshold [rad].
+/// n_i = b_prev_i x R b_cur_i, which must all be orthogonal to the translation. A match is an
+/// epipolar inlier when its angular distance from the epipolar plane (t . n_i over the Sampson
+/// norm of its gradient) is below threshold [rad].
 VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
                                 const std::vector<Eigen::Vector3d>& current,
                                 const Eigen::Matrix3d& rotation, double threshold, uint64_t seed);
@@ -37,11 +39,13 @@ struct RefinedRotation {
 /// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
 /// matches as rotation + translation, minimises the angular residuals |b_prev x R b_cur| (robust
 /// Kabsch); otherwise minimises the epipolar residuals t . (b_prev x R b_cur) over R and the unit
-/// t jointly (Gauss-Newton, Huber weights), which is Kneip & Lynen's eigenvalue cost
-/// lambda_min(sum n n^T) with t as the eigenvector. Covariance = sigma^2 (J^T W J)^-1 for the
-/// rotation, the translation marginalised.
+/// t jointly (Levenberg-Marquardt, Huber weights) -- Kneip & Lynen's eigenvalue cost
+/// lambda_min(sum n n^T), which is this cost minimised over t -- with each residual normalised to
+/// an angle (Sampson). Covariance = sigma^2 (J^T W J)^-1 for the rotation, t marginalised.
+/// `warm`: the start is already a refined rotation, so the wide first gates are skipped.
 RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
                                const std::vector<Eigen::Vector3d>& current,
-                               const VerifiedRotation& start, double threshold, int iterations);
+                               const VerifiedRotation& start, double threshold, int iterations,
+                               bool warm = false);
 
 }  // namespace visual_gyro

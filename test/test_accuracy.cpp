@@ -1,0 +1,147 @@
+// End-to-end accuracy: runs the evaluation command (as `make eval` does) on the shared real
+// sequences and on rendered ones, and checks the bounds the project promises. The shared-data
+// tests skip with the reason when ../shared/data is absent; the rendered ones always run.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+
+#include "test_support.h"
+
+namespace {
+
+using Figures = std::map<std::string, double>;  // "<method>.<key>" -> value
+
+double jsonNumber(const std::string& line, const std::string& key) {
+  const std::string needle = "\"" + key + "\": ";
+  const size_t at = line.find(needle);
+  if (at == std::string::npos) return std::nan("");
+  return std::strtod(line.c_str() + at + needle.size(), nullptr);
+}
+
+std::string jsonString(const std::string& line, const std::string& key) {
+  const std::string needle = "\"" + key + "\": \"";
+  const size_t at = line.find(needle);
+  if (at == std::string::npos) return "";
+  const size_t end = line.find('"', at + needle.size());
+  return line.substr(at + needle.size(), end - at - needle.size());
+}
+
+// Runs a command, returns its stdout; fails the test on a non-zero exit.
+std::string run(const std::string& command) {
+  std::string output;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) {
+    ADD_FAILURE() << "cannot run " << command;
+    return output;
+  }
+  std::array<char, 4096> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) output += buffer.data();
+  const int status = pclose(pipe);
+  EXPECT_EQ(status, 0) << command << "\n" << output;
+  return output;
+}
+
+Figures evaluate(const std::string& folder, const std::string& methods, const std::string& extra = "") {
+  const std::string output = run(std::string(VISUAL_GYRO_EVALUATE) + " " + folder + " --method " +
+                                 methods + " --quiet " + extra);
+  Figures figures;
+  std::istringstream lines(output);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (line.empty() || line[0] != '{') continue;
+    const std::string method = jsonString(line, "method");
+    for (const char* key : {"frames", "invalid", "rot_rmse_deg", "rot_max_deg", "yaw_rmse_deg",
+                            "yaw_max_deg", "mean_rate_dps"})
+      figures[method + "." + key] = jsonNumber(line, key);
+  }
+  EXPECT_FALSE(figures.empty()) << "no JSON line from evaluate:\n" << output;
+  return figures;
+}
+
+std::string sharedOrSkip(const std::string& name, std::string* why) {
+  return visual_gyro::test::sharedSequence(name, why);
+}
+
+void record(const Figures& f) {
+  for (const auto& [key, value] : f) ::testing::Test::RecordProperty(key, std::to_string(value));
+}
+
+}  // namespace
+
+TEST(KittiTurn, PaperYawWithinBoundAndVoteBeatsFivePoint) {
+  std::string why;
+  const std::string folder = sharedOrSkip("kitti_turn", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const Figures f = evaluate(folder, "paper,vote,essential5");
+  record(f);
+  EXPECT_EQ(f.at("paper.frames"), 50);
+  EXPECT_LE(f.at("paper.yaw_rmse_deg"), 0.4);
+  EXPECT_EQ(f.at("vote.invalid"), 0);
+  EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.8 * f.at("essential5.rot_rmse_deg"));
+  EXPECT_LE(f.at("vote.rot_max_deg"), 0.5);
+}
+
+TEST(KittiStraight, VoteBeatsFivePointUnderForwardMotion) {
+  std::string why;
+  const std::string folder = sharedOrSkip("kitti_straight", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const Figures f = evaluate(folder, "vote,essential5");
+  record(f);
+  EXPECT_EQ(f.at("vote.frames"), 50);
+  EXPECT_EQ(f.at("vote.invalid"), 0);
+  EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.8 * f.at("essential5.rot_rmse_deg"));
+  EXPECT_LE(f.at("vote.rot_max_deg"), 0.5);
+}
+
+TEST(EurocStatic, NoFalseRotationWhenStandingStill) {
+  std::string why;
+  const std::string folder = sharedOrSkip("euroc_v101_static", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const Figures f = evaluate(folder, "vote");
+  record(f);
+  EXPECT_EQ(f.at("vote.frames"), 94);
+  EXPECT_LE(f.at("vote.mean_rate_dps"), 0.3);
+}
+
+class Rendered : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    root_ = visual_gyro::test::makeTempDir("accuracy");
+    for (const char* preset : {"drive", "handheld"})
+      run(std::string(VISUAL_GYRO_RENDER) + " --preset " + preset + " --frames 25 --out " + root_ +
+          "/" + preset);
+  }
+  static std::string root_;
+};
+std::string Rendered::root_;
+
+TEST_F(Rendered, DriveSequenceVoteBeatsFivePoint) {
+  const Figures f = evaluate(root_ + "/drive", "vote,essential5");
+  record(f);
+  EXPECT_EQ(f.at("vote.frames"), 24);
+  EXPECT_EQ(f.at("vote.invalid"), 0);
+  EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.8 * f.at("essential5.rot_rmse_deg"));
+  EXPECT_LE(f.at("vote.rot_max_deg"), 0.5);
+}
+
+TEST_F(Rendered, DriveSequenceWithHalfTheMatchesWrong) {
+  const Figures f = evaluate(root_ + "/drive", "vote,essential5", "--outliers 0.5");
+  record(f);
+  EXPECT_EQ(f.at("vote.invalid"), 0);
+  EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.8 * f.at("essential5.rot_rmse_deg"));
+  EXPECT_LE(f.at("vote.rot_max_deg"), 0.5);
+}
+
+TEST_F(Rendered, HandheldRotationBothMethods) {
+  const Figures f = evaluate(root_ + "/handheld", "paper,vote");
+  record(f);
+  EXPECT_EQ(f.at("vote.invalid"), 0);
+  EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.1);
+  EXPECT_LE(f.at("paper.yaw_rmse_deg"), 0.4);
+}
