@@ -1,0 +1,120 @@
+#!/usr/bin/env bash
+# The visual gyroscope through ROS, headless: starts a private ROS master on a free port, converts
+# the default rendered sequence (render_sequence --preset drive) or $DATA (KITTI or EuRoC layout)
+# to a bag, replays it frame by frame through the visual_gyro node (play_frames waits for the
+# node's answer to each frame, so nothing is dropped however slow the machine), records ~rotation
+# and ~imu with `rosbag record`, and prints the summary and, last, one JSON line (issue 2's keys plus
+# imu_published and latency_ms) computed from what the node published against the bag's ground truth.
+#
+# Environment: DATA (sequence folder; default: rendered drive), METHOD (vote or paper; default vote),
+# BACKEND (auto, cpu, cuda; default auto), VG_WS / CUDA (workspace, see env.sh), ROS_DEMO_OUT
+# (work folder; default out/ros_demo).
+set -euo pipefail
+source "$(dirname "$0")/env.sh"
+
+METHOD="${METHOD:-vote}"
+BACKEND="${BACKEND:-auto}"
+OUT_DIR="${ROS_DEMO_OUT:-${REPO_DIR}/out/ros_demo}"
+NS=/visual_gyro
+log() { echo "[ros-demo] $*" >&2; }
+
+case "${METHOD}" in
+  vote | paper) ;;
+  *)
+    log "METHOD=${METHOD}: the ROS node runs the estimator methods vote and paper; the OpenCV/OpenGV"
+    log "baselines run only in the evaluation command (make eval DATA=<folder> METHOD=${METHOD})."
+    exit 2
+    ;;
+esac
+for tool in visual_gyro_node make_bag play_frames summarize_outputs render_sequence; do
+  if [[ ! -x "${BIN}/${tool}" ]]; then
+    log "missing ${BIN}/${tool}: build first (make build, or scripts/build.sh)"
+    exit 1
+  fi
+done
+source_ws
+mkdir -p "${OUT_DIR}"
+
+# --- the sequence and its bag ---
+if [[ -n "${DATA:-}" ]]; then
+  [[ -d "${DATA}" ]] || { log "DATA=${DATA} is not a folder"; exit 2; }
+  SEQ_DIR="$(cd "${DATA}" && pwd)"
+  NAME="$(basename "${SEQ_DIR}")"
+else
+  NAME=rendered_drive
+  SEQ_DIR="${OUT_DIR}/${NAME}"
+  log "rendering the default sequence (preset drive) into ${SEQ_DIR}"
+  rm -rf "${SEQ_DIR}"
+  "${BIN}/render_sequence" --preset drive --out "${SEQ_DIR}" >"${OUT_DIR}/render.log" 2>&1 ||
+    { cat "${OUT_DIR}/render.log" >&2; exit 1; }
+fi
+BAG="${OUT_DIR}/${NAME}.bag"
+OUTPUTS="${OUT_DIR}/${NAME}_outputs.bag"
+log "converting ${SEQ_DIR} to ${BAG}"
+"${BIN}/make_bag" "${SEQ_DIR}" "${BAG}" >&2
+
+# --- a private master, cleaned up on exit ---
+PORT="$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
+export ROS_MASTER_URI="http://localhost:${PORT}" ROS_HOSTNAME=localhost
+export ROS_LOG_DIR="${OUT_DIR}/log" ROS_HOME="${OUT_DIR}/ros_home"
+unset ROS_IP
+mkdir -p "${ROS_LOG_DIR}" "${ROS_HOME}"
+pids=()
+cleanup() {
+  local i
+  for ((i = ${#pids[@]} - 1; i >= 0; i--)); do
+    kill -INT "${pids[i]}" 2>/dev/null || true
+  done
+  for pid in "${pids[@]}"; do
+    for _ in $(seq 50); do kill -0 "${pid}" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "${pid}" 2>/dev/null || true
+  done
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+log "starting a ROS master on port ${PORT}"
+roscore -p "${PORT}" >"${OUT_DIR}/roscore.log" 2>&1 &
+pids+=($!)
+for _ in $(seq 150); do
+  rostopic list >/dev/null 2>&1 && break
+  sleep 0.2
+done
+rostopic list >/dev/null 2>&1 || { log "the ROS master did not come up:"; tail -20 "${OUT_DIR}/roscore.log" >&2; exit 1; }
+
+# --- the node (parameters from config/visual_gyro.yaml) and the recorder ---
+rosparam load "${REPO_DIR}/config/visual_gyro.yaml" "${NS}"
+rosparam set "${NS}/method" "${METHOD}"
+rosparam set "${NS}/backend" "${BACKEND}"
+"${BIN}/visual_gyro_node" __name:=visual_gyro image:=/camera/image_raw ground_truth:=/ground_truth/pose \
+  >"${OUT_DIR}/node.log" 2>&1 &
+pids+=($!)
+rm -f "${OUTPUTS}" "${OUTPUTS}.active"
+# The recorder binary itself (not the `rosbag record` Python wrapper, whose SIGINT forwarding fails
+# in a background job) so that waiting for its PID means the bag is closed.
+record_cmd=(rosbag record)
+[[ -x /usr/lib/rosbag/record ]] && record_cmd=(/usr/lib/rosbag/record)
+"${record_cmd[@]}" -O "${OUTPUTS}" "${NS}/rotation" "${NS}/imu" __name:=visual_gyro_recorder \
+  >"${OUT_DIR}/record.log" 2>&1 &
+recorder=$!
+pids+=("${recorder}")
+
+log "replaying ${NAME} frame by frame through the visual_gyro node (method ${METHOD}, backend ${BACKEND})"
+if ! "${BIN}/play_frames" "${BAG}" --ns "${NS}" --timeout 60 --wait-for "${NS}/rotation" --wait-for "${NS}/imu" \
+  >"${OUT_DIR}/play.log" 2>&1; then
+  log "replay failed:"
+  tail -5 "${OUT_DIR}/play.log" >&2
+  log "node log:"
+  tail -20 "${OUT_DIR}/node.log" >&2
+  exit 1
+fi
+grep -h "play_frames: published" "${OUT_DIR}/play.log" >&2 || true
+
+# Stop the recorder (SIGINT: it closes the bag) before reading what it wrote.
+sleep 0.5
+kill -INT "${recorder}"
+for _ in $(seq 100); do kill -0 "${recorder}" 2>/dev/null || break; sleep 0.1; done
+for _ in $(seq 100); do [[ -f "${OUTPUTS}" && ! -e "${OUTPUTS}.active" ]] && break; sleep 0.1; done
+[[ -f "${OUTPUTS}" ]] || { log "rosbag record wrote no ${OUTPUTS}:"; tail -5 "${OUT_DIR}/record.log" >&2; exit 1; }
+
+"${BIN}/summarize_outputs" "${BAG}" "${OUTPUTS}" --ns "${NS}" --dataset "${NAME}"
