@@ -371,7 +371,7 @@ std::string OutputSummary::json() const {
     << jsonNumber(detect_ms, 3) << ", \"describe\": " << jsonNumber(describe_ms, 3)
     << ", \"match\": " << jsonNumber(match_ms, 3) << ", \"estimate\": " << jsonNumber(estimate_ms, 3)
     << ", \"total\": " << jsonNumber(total_ms, 3) << "}, \"imu_published\": " << imu_published
-    << ", \"latency_ms\": " << jsonNumber(latency_ms, 3) << ", \"valid_frames\": " << valid_frames
+    << ", \"latency_ms\": " << jsonNumber(latency_ms, 3) << ", \"invalid\": " << (frames - valid_frames)
     << ", \"backend\": " << jsonString(backend) << ", \"source\": \"ros\"}";
   return j.str();
 }

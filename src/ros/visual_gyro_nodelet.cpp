@@ -565,6 +565,7 @@ void VisualGyroNodelet::addGroundTruthPoint(double stamp, const Eigen::Quaternio
 }
 
 void VisualGyroNodelet::updateYawPlot(double stamp, const std_msgs::Header& header) {
+  bool truth_from_buffer = false;
   if (!plot_started_) {
     plot_started_ = true;
     plot_t0_ = stamp;
@@ -580,7 +581,10 @@ void VisualGyroNodelet::updateYawPlot(double stamp, const std_msgs::Header& head
         truth_reference_ = entry.second;
         truth_last_yaw_deg_ = 0.0;
       }
-      if (have_truth_reference_) addGroundTruthPoint(entry.first, entry.second);
+      if (have_truth_reference_) {
+        addGroundTruthPoint(entry.first, entry.second);
+        truth_from_buffer = true;
+      }
     }
   }
   const double yaw = unwrapDeg(yawPitchRoll(integrated_)[0] * kRadToDeg, plot_last_yaw_deg_);
@@ -594,7 +598,9 @@ void VisualGyroNodelet::updateYawPlot(double stamp, const std_msgs::Header& head
   plot_estimate_.header.frame_id = world_frame_;
   if (yaw_plot_pub_.getNumSubscribers() == 0) return;
   if (plot_estimate_.points.size() >= 2) yaw_plot_pub_.publish(plot_estimate_);
-  if (plot_truth_.points.size() >= 2) yaw_plot_pub_.publish(plot_truth_);
+  // The ground-truth line is published by groundTruthCb as it grows; here only when the buffer
+  // (truth that came before the image) filled it.
+  if (truth_from_buffer && plot_truth_.points.size() >= 2) yaw_plot_pub_.publish(plot_truth_);
 }
 
 void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {

@@ -1,5 +1,6 @@
 // Integration test of the visual_gyro node and nodelet (the same source runs against both:
-// visual_gyro_node.test and visual_gyro_nodelet.test). Publishes rendered frames with a known
+// visual_gyro_node.test and visual_gyro_nodelet.test, and with ~output_frame set and a static
+// transform to a body frame: visual_gyro_output_frame.test). Publishes rendered frames with a known
 // rotation through image_transport + camera_info and checks what comes out. Every wait is bounded.
 //
 // The tests share one running node and run in order; each starts its stamps far after the previous
@@ -21,6 +22,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/image_encodings.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 
 #include "ros_conversions.h"
 #include "visual_gyro/RotationEstimate.h"
@@ -36,6 +38,13 @@ constexpr double kDeg = M_PI / 180.0;
 std::string g_output_ns = "/visual_gyro";
 std::string g_image_topic = "/test_camera/image_raw";
 const char* kCameraFrame = "test_camera_optical";
+/// ~output_frame of the node under test ("" = the camera frame) and the rotation output <- camera.
+std::string g_output_frame;
+Eigen::Matrix3d g_to_output = Eigen::Matrix3d::Identity();
+
+std::string expectedFrame() { return g_output_frame.empty() ? std::string(kCameraFrame) : g_output_frame; }
+/// A rotation R of the camera expressed in the output frame: T R T^T.
+Eigen::Matrix3d inOutput(const Eigen::Matrix3d& r) { return g_to_output * r * g_to_output.transpose(); }
 
 /// Waits until pred() holds or `timeout` seconds pass (the AsyncSpinner delivers the messages).
 bool waitFor(const std::function<bool()>& pred, double timeout) {
@@ -243,17 +252,23 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
     const RotationEstimate* m = findRotation(rotations, t0 + k * dt);
     ASSERT_NE(m, nullptr);
     EXPECT_TRUE(m->valid) << m->status;
-    EXPECT_EQ(m->header.frame_id, kCameraFrame);
+    EXPECT_EQ(m->header.frame_id, expectedFrame());
     EXPECT_NEAR(m->previous_stamp.toSec(), t0 + (k - 1) * dt, 1e-6);
     EXPECT_NEAR(m->dt, dt, 1e-6);
     EXPECT_NEAR(m->yaw / kDeg, 1.0, 0.15) << "a right turn is a positive yaw";
     EXPECT_NEAR(m->pitch / kDeg, 0.0, 0.15);
     EXPECT_NEAR(m->roll / kDeg, 0.0, 0.15);
     const Eigen::Matrix3d r = conv::fromMsg(m->rotation).toRotationMatrix();
-    EXPECT_LT(visual_gyro::rotationAngleBetween(r, r_true) / kDeg, 0.15);
+    EXPECT_LT(visual_gyro::rotationAngleBetween(r, inOutput(r_true)) / kDeg, 0.15);
     const Eigen::Vector3d omega(m->angular_velocity.x, m->angular_velocity.y, m->angular_velocity.z);
-    EXPECT_LT((omega - omega_true).norm(), 0.03) << "omega " << omega.transpose() << " true " << omega_true.transpose();
-    EXPECT_GT(m->angular_velocity.y, 0.0);
+    const Eigen::Vector3d omega_expected = g_to_output * omega_true;
+    EXPECT_LT((omega - omega_expected).norm(), 0.03)
+        << "omega " << omega.transpose() << " expected " << omega_expected.transpose();
+    if (g_output_frame.empty()) {
+      EXPECT_GT(m->angular_velocity.y, 0.0) << "a right turn turns about the optical frame's +y (down)";
+    } else {
+      EXPECT_LT(m->angular_velocity.z, 0.0) << "a right turn turns about the body frame's -z (REP 103, z up)";
+    }
     for (int i = 0; i < 3; ++i) {
       EXPECT_GT(m->angular_velocity_covariance[4 * i], 0.0);
       EXPECT_GT(m->rotation_covariance[4 * i], 0.0);
@@ -277,7 +292,7 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
   for (const auto& imu : imus) {
     const RotationEstimate* m = findRotation(rotations, imu.header.stamp.toSec());
     ASSERT_NE(m, nullptr) << "Imu stamp " << imu.header.stamp << " matches no RotationEstimate";
-    EXPECT_EQ(imu.header.frame_id, kCameraFrame);
+    EXPECT_EQ(imu.header.frame_id, expectedFrame());
     EXPECT_EQ(imu.orientation_covariance[0], -1.0) << "REP 145: no orientation";
     EXPECT_EQ(imu.linear_acceleration_covariance[0], -1.0) << "REP 145: no linear acceleration";
     EXPECT_DOUBLE_EQ(imu.angular_velocity.x, m->angular_velocity.x);
@@ -291,7 +306,7 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
   ASSERT_EQ(poses.size(), images.size());
   EXPECT_EQ(poses.back().header.frame_id, "visual_gyro_world");
   const Eigen::Matrix3d integrated = conv::fromMsg(poses.back().pose.orientation).toRotationMatrix();
-  EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, yawOrientation(7.0)) / kDeg, 0.5);
+  EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, inOutput(yawOrientation(7.0))) / kDeg, 0.5);
   EXPECT_LT(visual_gyro::rotationAngleBetween(conv::fromMsg(poses.front().pose.orientation).toRotationMatrix(),
                                               Eigen::Matrix3d::Identity()), 1e-9);
 }
@@ -421,6 +436,20 @@ int main(int argc, char** argv) {
   ros::NodeHandle pnh("~");
   pnh.param<std::string>("output_ns", g_output_ns, g_output_ns);
   pnh.param<std::string>("image_topic", g_image_topic, g_image_topic);
+  pnh.param<std::string>("output_frame", g_output_frame, "");
+  std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_tf;
+  if (!g_output_frame.empty()) {
+    // A body frame (REP 103: x forward, y left, z up) of the optical frame (x right, y down, z fwd).
+    g_to_output << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = ros::Time::now();
+    t.header.frame_id = g_output_frame;
+    t.child_frame_id = kCameraFrame;
+    t.transform.translation.x = 0.2;
+    t.transform.rotation = conv::toMsg(Eigen::Quaterniond(g_to_output));
+    static_tf.reset(new tf2_ros::StaticTransformBroadcaster());
+    static_tf->sendTransform(t);
+  }
   ros::AsyncSpinner spinner(2);
   spinner.start();
   Harness harness;
