@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config catkin python3-catkin-pkg
   ros-core-dev rosbash python3-rostopic python3-rosnode python3-roslaunch
-  libnodeletlib-dev libnodeletlib-tools libpluginlib-dev
+  libnodeletlib-dev libnodeletlib-tools pluginlib-dev
   libcv-bridge-dev libimage-transport-dev libtf2-ros-dev libtf2-geometry-msgs-dev
   librostest-dev python3-rostest librosbag-dev python3-rosbag
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure

@@ -328,7 +328,10 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     for (const Eigen::Vector3d& c : considered)
       if ((c - rotation_vector).norm() < 0.5 * settings_.rotation_bin_deg * kDeg) return;
     considered.push_back(rotation_vector);
-    const VerifiedRotation v = verifyRotation(previous, current, expMap(rotation_vector), threshold, seed);
+    // Voted candidates are off by a few tenths of a degree under translation: a looser gate lets
+    // them gather the inliers (and the epipole) that refinement then tightens.
+    const VerifiedRotation v =
+        verifyRotation(previous, current, expMap(rotation_vector), 2.0 * threshold, seed);
     if (v.inliers > best.inliers) best = v;
   };
   const double needed = std::max<double>(settings_.min_matches, settings_.min_inlier_ratio * n);

@@ -203,10 +203,14 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
     double gate_width = schedule[round];
     if (gate_width == 0.0) gate_width = adaptiveGate(previous, current, R, &t, threshold);
     // The wide early gates only need to move the start into the basin: a few steps suffice.
-    const int round_iterations = round + 1 < rounds ? std::min(iterations, 2) : iterations;
+    const bool last = round + 1 == rounds;
+    const int round_iterations = last ? iterations : std::min(iterations, 2);
+    // ... and every other match: plenty to find the basin; the last round uses them all.
+    const size_t stride = 1;
     for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d rc = R * current[i];
-      gate[i] = withinEpipolarGate(t, previous[i], rc, previous[i].cross(rc), gate_width) &&
+      gate[i] = i % stride == 0 &&
+                withinEpipolarGate(t, previous[i], rc, previous[i].cross(rc), gate_width) &&
                 sameHemisphere(previous[i], rc);
     }
     // One pass gives both the cost at (R, t) and the normal equations for the next step, so an
@@ -313,12 +317,14 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
     }
   }
   out.epipolar_inliers = out.rotation_inliers;
-  auto countInliers = [&](const Eigen::Vector3d& t) {
+  auto countInliers = [&](const Eigen::Vector3d& t, size_t stride) {
     int count = 0;
-    for (size_t i = 0; i < n; ++i)
+    for (size_t i = 0; i < n; i += stride)
       count += usable[i] && withinEpipolarGate(t, previous[i], rotated[i], normals[i], threshold);
     return count;
   };
+  // Samples are scored on every other match (counts doubled); the winner is recounted on all.
+  const size_t sample_stride = n >= 200 ? 2 : 1;
   if (moving.size() >= 2) {
     uint64_t state = seed ^ 0x5452414E534C4154ull;  // "TRANSLAT"
     // 2-point samples among the moving matches, stopped adaptively: once the best translation
@@ -331,7 +337,7 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
       const Eigen::Vector3d t_raw = normals[a].cross(normals[b]);
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();
-      const int count = countInliers(t);
+      const int count = static_cast<int>(sample_stride) * countInliers(t, sample_stride);
       if (count > out.epipolar_inliers) {
         out.epipolar_inliers = count;
         out.translation = t;
@@ -339,6 +345,7 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
         trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
     }
+    if (!out.translation.isZero()) out.epipolar_inliers = countInliers(out.translation, 1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
@@ -353,7 +360,7 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
       }
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
       const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
-      const int count = countInliers(refitted);
+      const int count = countInliers(refitted, 1);
       if (count <= out.epipolar_inliers) break;
       out.epipolar_inliers = count;
       out.translation = refitted;
