@@ -10,13 +10,13 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <functional>
+
+#include "visual_gyro/hypothesis_voter.h"
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace visual_gyro {
-
-class HypothesisVoter;
 
 /// Settings of the rotation estimator. Degrees in the settings, radians in the results.
 struct EstimatorSettings {
@@ -122,14 +122,16 @@ class RotationEstimator {
 
   EstimatorSettings settings_;
   std::unique_ptr<HypothesisVoter> voter_;
+  VoteResult votes_;  // reused: no per-frame allocation once the histogram has its size
   uint64_t frame_count_ = 0;
 };
 
 /// Receives the factory's one warning (e.g. "CUDA unavailable: ...; using the CPU").
 using WarningSink = std::function<void(const std::string&)>;
 
-/// Picks the backend named by settings.backend: "cpu", "cuda" (falls back to the CPU with one
-/// warning when no device works), or "auto" (CUDA when available, silently CPU otherwise).
+/// Picks the backend named by settings.backend: "cpu"; "cuda" or "auto" (the default): CUDA when
+/// the build has it and a device works, else the CPU with one warning through `warn` saying why
+/// (an "auto" build without CUDA compiled in uses the CPU silently).
 /// Throws std::invalid_argument for an unknown backend name.
 std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettings& settings,
                                                            const WarningSink& warn = WarningSink());

@@ -211,7 +211,7 @@ RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3
   request.grid.centre[0] = request.grid.centre[1] = request.grid.centre[2] = 0.f;
   request.grid.bin_width = static_cast<float>(settings_.yaw_bin_deg * kDeg);
   request.grid.bins = binsFor(settings_.yaw_window_deg, settings_.yaw_bin_deg);
-  VoteResult votes;
+  VoteResult& votes = votes_;
   voter_->vote(request, &votes);
 
   RotationResult result;
@@ -345,13 +345,13 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     const Eigen::Vector3d centre = narrow && prior_usable ? prior.rotation_vector : Eigen::Vector3d::Zero();
     const double window = narrow ? settings_.rotation_window_deg : settings_.wide_window_deg;
     const double bin = narrow ? settings_.rotation_bin_deg
-                              : std::max(settings_.rotation_bin_deg, 2.0 * window / 64.0);
+                              : std::max(settings_.rotation_bin_deg, 2.0 * window / 40.0);
     for (int k = 0; k < 3; ++k) request.grid.centre[k] = static_cast<float>(centre[k]);
     request.grid.bin_width = static_cast<float>(bin * kDeg);
     request.grid.bins = binsFor(window, bin);
     request.triple = tripleOptions(settings_, false, narrow ? settings_.max_angle_change_deg : 0.0);
     request.seed = seed + (narrow ? 0 : 0x9E3779B97F4A7C15ull);
-    VoteResult votes;
+    VoteResult& votes = votes_;
     voter_->vote(request, &votes);
     result.hypotheses_drawn += settings_.hypotheses;
     result.hypotheses_accepted += static_cast<int>(votes.accepted);
