@@ -113,7 +113,7 @@ class Rendered : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     root_ = visual_gyro::test::makeTempDir("accuracy");
-    for (const char* preset : {"drive", "handheld"})
+    for (const char* preset : {"drive", "handheld", "forward"})
       run(std::string(VISUAL_GYRO_RENDER) + " --preset " + preset + " --frames 25 --out " + root_ +
           "/" + preset);
   }
@@ -132,6 +132,14 @@ TEST_F(Rendered, DriveSequenceVoteBeatsFivePoint) {
 
 TEST_F(Rendered, DriveSequenceWithHalfTheMatchesWrong) {
   const Figures f = evaluate(root_ + "/drive", "vote,essential5", "--outliers 0.5");
+  record(f);
+  EXPECT_EQ(f.at("vote.invalid"), 0);
+  EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.8 * f.at("essential5.rot_rmse_deg"));
+  EXPECT_LE(f.at("vote.rot_max_deg"), 0.5);
+}
+
+TEST_F(Rendered, ForwardDrivingVoteBeatsFivePoint) {
+  const Figures f = evaluate(root_ + "/forward", "vote,essential5");
   record(f);
   EXPECT_EQ(f.at("vote.invalid"), 0);
   EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.8 * f.at("essential5.rot_rmse_deg"));

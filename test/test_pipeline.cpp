@@ -1,0 +1,121 @@
+// The VisualGyro pipeline: frame handling, validity, bad input, and a real estimate on rendered views.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "visual_gyro/renderer.h"
+#include "visual_gyro/visual_gyro.h"
+
+namespace vg = visual_gyro;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+vg::RenderSettings smallScene() {
+  vg::RenderSettings s;
+  s.preset = "handheld";
+  s.width = 480;
+  s.height = 360;
+  s.fx = s.fy = 380.0;
+  s.cx = 239.5;
+  s.cy = 179.5;
+  return s;
+}
+
+vg::CameraModel cameraOf(const vg::RenderSettings& s) {
+  return vg::CameraModel(s.fx, s.fy, s.cx, s.cy, s.width, s.height);
+}
+
+vg::VisualGyroSettings cpuSettings() {
+  vg::VisualGyroSettings s;
+  s.estimator.backend = "cpu";
+  return s;
+}
+
+}  // namespace
+
+TEST(Pipeline, EstimatesTheRenderedRotationAndRate) {
+  const vg::RenderSettings scene = smallScene();
+  const Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
+  // Camera k turns right (yaw +1.5 deg) and pitches slightly; b_prev = R b_cur with R = R0^T R1.
+  const Eigen::Matrix3d R1 = (Eigen::AngleAxisd(1.5 * kDeg, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(-0.4 * kDeg, Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix();
+  const Eigen::Vector3d position(0.0, 0.0, 0.0);
+  vg::VisualGyro gyro(cameraOf(scene), cpuSettings());
+  vg::FrameResult first = gyro.processFrame(vg::renderView(scene, R0, position), 10.0);
+  EXPECT_FALSE(first.has_estimate);
+  EXPECT_EQ(first.error, "first frame");
+  EXPECT_GT(first.features, 300);
+  vg::FrameResult second = gyro.processFrame(vg::renderView(scene, R1, position), 10.05);
+  ASSERT_TRUE(second.has_estimate) << second.error;
+  const Eigen::Matrix3d truth = R0.transpose() * R1;
+  EXPECT_LT(vg::rotationAngleBetween(second.rotation.rotation, truth), 0.05 * kDeg);
+  EXPECT_NEAR(second.rotation.yaw, 1.5 * kDeg, 0.05 * kDeg);
+  EXPECT_NEAR(second.dt, 0.05, 1e-9);
+  // Angular velocity = rotation vector / dt, in the camera frame: about +30 deg/s about +y.
+  EXPECT_NEAR(second.angular_velocity.y(), 1.5 * kDeg / 0.05, 0.05 * kDeg / 0.05);
+  EXPECT_TRUE(second.angular_velocity_covariance.isApprox(second.rotation.covariance / (0.05 * 0.05)));
+  EXPECT_EQ(second.previous_bearings.size(), second.current_bearings.size());
+  EXPECT_GT(second.rotation.times.total, 0.0);
+  EXPECT_EQ(second.rotation.backend, "cpu");
+}
+
+TEST(Pipeline, RejectsBadImagesWithoutTouchingTheState) {
+  const vg::RenderSettings scene = smallScene();
+  vg::VisualGyro gyro(cameraOf(scene), cpuSettings());
+  const cv::Mat image = vg::renderView(scene, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+
+  vg::FrameResult r = gyro.processFrame(cv::Mat(), 1.0);
+  EXPECT_FALSE(r.has_estimate);
+  EXPECT_NE(r.error.find("empty"), std::string::npos) << r.error;
+
+  cv::Mat color;
+  cv::cvtColor(image, color, cv::COLOR_GRAY2BGR);
+  r = gyro.processFrame(color, 1.0);
+  EXPECT_NE(r.error.find("CV_8UC1"), std::string::npos) << r.error;
+
+  r = gyro.processFrame(image(cv::Rect(0, 0, 100, 100)).clone(), 1.0);
+  EXPECT_NE(r.error.find("camera model"), std::string::npos) << r.error;
+
+  r = gyro.processFrame(image, NAN);
+  EXPECT_NE(r.error.find("not finite"), std::string::npos) << r.error;
+
+  EXPECT_EQ(gyro.processFrame(image, 2.0).error, "first frame");
+  r = gyro.processFrame(image, 2.0);
+  EXPECT_NE(r.error.find("not after"), std::string::npos) << r.error;
+  r = gyro.processFrame(image, 1.5);
+  EXPECT_NE(r.error.find("not after"), std::string::npos) << r.error;
+  // The rejected stamps left the state alone: the next frame pairs with the one at 2.0 s.
+  r = gyro.processFrame(image, 2.1);
+  ASSERT_TRUE(r.has_estimate) << r.error;
+  EXPECT_NEAR(r.dt, 0.1, 1e-9);
+  EXPECT_LT(r.rotation.rotation_vector.norm(), 0.01 * kDeg);  // same image: no rotation
+}
+
+TEST(Pipeline, TinyOrFeaturelessImagesGiveAnInvalidEstimateNotACrash) {
+  vg::VisualGyro tiny(vg::CameraModel(20, 20, 9.5, 9.5, 20, 20), cpuSettings());
+  const cv::Mat small(20, 20, CV_8UC1, cv::Scalar(128));
+  EXPECT_EQ(tiny.processFrame(small, 0.0).error, "first frame");
+  vg::FrameResult r = tiny.processFrame(small, 0.1);
+  EXPECT_FALSE(r.has_estimate);
+  EXPECT_NE(r.error.find("too few matches"), std::string::npos) << r.error;
+  EXPECT_EQ(r.features, 0);
+}
+
+TEST(Pipeline, RejectsUnusableCameraAndSettings) {
+  EXPECT_THROW(vg::VisualGyro(vg::CameraModel(NAN, 500, 320, 240, 640, 480), cpuSettings()),
+               std::invalid_argument);
+  vg::VisualGyroSettings bad = cpuSettings();
+  bad.estimator.method = "nonsense";
+  EXPECT_THROW(vg::VisualGyro(vg::CameraModel(500, 500, 320, 240, 640, 480), bad), std::invalid_argument);
+  vg::VisualGyro gyro(vg::CameraModel(500, 500, 320, 240, 640, 480), cpuSettings());
+  EXPECT_THROW(gyro.setCamera(vg::CameraModel(500, -1, 320, 240, 640, 480)), std::invalid_argument);
+  bad = cpuSettings();
+  bad.front_end.max_features = 0;
+  EXPECT_THROW(gyro.setSettings(bad), std::invalid_argument);
+}
