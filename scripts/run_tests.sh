@@ -24,9 +24,11 @@ if [[ ! -d ${results} ]]; then
   echo "0 passed, 1 failed, 0 skipped"
   exit 1
 fi
-/usr/bin/python3 "${REPO_DIR}/scripts/summarize_tests.py" "${results}" || exit 1
 if ((status != 0)); then
-  tail -n 40 "${log}"
+  grep -n -E "error|Error|FAILED" "${log}" | head -n 30 || true
+  tail -n 30 "${log}"
   echo "[test] catkin_make run_tests exited with ${status}"
-  exit "${status}"
 fi
+# The count line comes last, whatever happened above.
+/usr/bin/python3 "${REPO_DIR}/scripts/summarize_tests.py" "${results}" || exit 1
+exit "${status}"
