@@ -193,6 +193,7 @@ VisualGyroSettings VisualGyroNodelet::settingsFromConfig(const Config& c) const 
   e.min_matches = c.min_matches;
   e.min_votes = c.min_votes;
   e.min_inlier_ratio = c.min_inlier_ratio;
+  e.min_covariance_rad2 = c.min_covariance_rad2;
   s.run_estimator = true;
   return s;
 }
