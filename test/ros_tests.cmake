@@ -9,6 +9,8 @@ target_link_libraries(test_visual_gyro_ros visual_gyro_ros_tools ${catkin_LIBRAR
 add_rostest(test/ros/visual_gyro_nodelet.test DEPENDENCIES test_visual_gyro_ros visual_gyro_nodelet)
 # The same with ~output_frame (outputs rotated into a body frame through tf2).
 add_rostest(test/ros/visual_gyro_output_frame.test DEPENDENCIES test_visual_gyro_ros visual_gyro_nodelet)
+# The same with intrinsics from parameters instead of camera_info (plain image subscription).
+add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_ros visual_gyro_node)
 
 # Replay of a bag made from ../shared/data/kitti_turn (skipped with a message when absent).
 add_rostest_gtest(test_replay_ros test/ros/replay_kitti.test test/ros/test_replay_ros.cpp test/test_support.cpp)

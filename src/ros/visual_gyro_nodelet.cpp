@@ -71,6 +71,12 @@ void VisualGyroNodelet::onInit() {
   pnh.param("plot_points", plot_points_, 3000);
   pnh.param("ground_truth_tolerance", ground_truth_tolerance_, 0.005);
   plot_points_ = std::max(plot_points_, 2);
+  pnh.param("fx", param_fx_, 0.0);
+  pnh.param("fy", param_fy_, -1.0);
+  pnh.param("cx", param_cx_, -1.0);
+  pnh.param("cy", param_cy_, -1.0);
+  pnh.param<std::string>("distortion_model", param_distortion_model_, "none");
+  pnh.param("D", param_distortion_, std::vector<double>());
 
   it_.reset(new image_transport::ImageTransport(nh));
   tf_buffer_.reset(new tf2_ros::Buffer());
@@ -200,25 +206,22 @@ VisualGyroSettings VisualGyroNodelet::settingsFromConfig(const Config& c) const 
 
 bool VisualGyroNodelet::cameraFromParameters(int width, int height, CameraModel* camera,
                                              std::string* why) const {
-  ros::NodeHandle& pnh = getPrivateNodeHandle();
-  double fx = 0, fy = 0, cx = -1, cy = -1;
-  pnh.param("fx", fx, 0.0);
-  pnh.param("fy", fy, fx);
-  pnh.param("cx", cx, (width - 1) / 2.0);
-  pnh.param("cy", cy, (height - 1) / 2.0);
-  std::string model_name;
-  pnh.param<std::string>("distortion_model", model_name, "none");
-  std::vector<double> d;
-  pnh.param("D", d, std::vector<double>());
+  // Read once at start (onInit): a parameter-server round trip per frame would add milliseconds.
+  const double fx = param_fx_;
+  const double fy = param_fy_ > 0.0 ? param_fy_ : fx;
+  const double cx = param_cx_ >= 0.0 ? param_cx_ : (width - 1) / 2.0;
+  const double cy = param_cy_ >= 0.0 ? param_cy_ : (height - 1) / 2.0;
   DistortionModel model = DistortionModel::kNone;
-  if (!parseDistortionModel(model_name, &model)) {
-    *why = "~distortion_model '" + model_name + "' is not supported (none, plumb_bob, radtan, equidistant)";
+  if (!parseDistortionModel(param_distortion_model_, &model)) {
+    *why = "~distortion_model '" + param_distortion_model_ +
+           "' is not supported (none, plumb_bob, radtan, equidistant)";
     return false;
   }
   if (!(fx > 0.0)) {
     *why = "~use_camera_info is false but ~fx is not set (give ~fx, ~fy, ~cx, ~cy)";
     return false;
   }
+  std::vector<double> d = param_distortion_;
   bool all_zero = true;
   for (double v : d) all_zero = all_zero && v == 0.0;
   if (all_zero) {

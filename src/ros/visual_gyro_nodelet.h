@@ -7,6 +7,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -91,6 +92,10 @@ class VisualGyroNodelet : public nodelet::Nodelet {
 
   // --- parameters ---
   bool use_camera_info_ = true;
+  // Intrinsics when use_camera_info_ is false (fy, cx, cy < 0: fx and the image centre).
+  double param_fx_ = 0.0, param_fy_ = -1.0, param_cx_ = -1.0, param_cy_ = -1.0;
+  std::string param_distortion_model_ = "none";
+  std::vector<double> param_distortion_;
   std::string backend_request_ = "auto";
   std::string output_frame_;
   std::string world_frame_ = "visual_gyro_world";
