@@ -618,7 +618,7 @@ void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
   const double mean_latency = w.rotations > 0 ? w.latency_sum_ms / w.rotations : 0.0;
   const double mean_matches = w.estimates > 0 ? w.matches_sum / w.estimates : 0.0;
   const double mean_vote_ratio = w.estimates > 0 ? w.vote_ratio_sum / w.estimates : 0.0;
-  status.add("Subscribed", subscribed_ ? "yes" : "no (no output subscribers)");
+  status.add("Subscribed", subscribed_.load() ? "yes" : "no (no output subscribers)");
   status.add("Input rate [Hz]", w.images / span);
   status.add("Output rate ~rotation [Hz]", w.rotations / span);
   status.add("Output rate ~imu [Hz]", w.imus / span);

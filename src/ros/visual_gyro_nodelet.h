@@ -2,6 +2,7 @@
 // frame-to-frame rotation (visual_gyro/RotationEstimate), integrated orientation and a yaw plot out.
 #pragma once
 
+#include <atomic>
 #include <deque>
 #include <map>
 #include <memory>
@@ -87,7 +88,7 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   ros::WallTimer diagnostic_timer_;
 
   std::mutex connect_mutex_;  ///< guards the subscriptions (connect callbacks run on other threads)
-  bool subscribed_ = false;
+  std::atomic<bool> subscribed_{false};  // also read by the diagnostics
   std::mutex state_mutex_;    ///< guards everything below
 
   // --- parameters ---
