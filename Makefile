@@ -17,7 +17,7 @@ build: deps
 	@scripts/build.sh
 
 demo: build
-	@scripts/demo.sh
+	@scripts/ros_demo.sh
 
 test: build
 	@scripts/run_tests.sh

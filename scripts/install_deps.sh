@@ -10,6 +10,7 @@ packages=(
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
   libdiagnostic-updater-dev
   ros-message-generation ros-std-msgs ros-sensor-msgs ros-geometry-msgs ros-visualization-msgs
+  python3-sensor-msgs python3-diagnostic-msgs
   libopencv-dev libeigen3-dev libopengv-dev libgtest-dev python3-numpy python3-matplotlib
 )
 missing=()
