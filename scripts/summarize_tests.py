@@ -13,9 +13,10 @@ def main(results_dir):
     files = sorted(glob.glob(os.path.join(results_dir, "**", "*.xml"), recursive=True))
     for path in files:
         name = os.path.basename(path)
-        # rosunit-*.xml repeats the test cases that rostest-*.xml already reports.
-        if name.startswith("rosunit-"):
-            continue
+        # rostest-*.xml wraps a whole .test file in one case; the test node's own cases are in
+        # rosunit-*.xml. The wrapper counts only when it failed (e.g. the node crashed before
+        # writing its results).
+        wrapper = name.startswith("rostest-")
         try:
             root = ET.parse(path).getroot()
         except ET.ParseError as error:
@@ -28,6 +29,8 @@ def main(results_dir):
             if failure is None:
                 failure = case.find("error")
             skip = case.find("skipped")
+            if wrapper and failure is None:
+                continue
             if failure is not None:
                 failed += 1
                 message = (failure.get("message") or failure.text or "").strip().splitlines()
@@ -36,7 +39,9 @@ def main(results_dir):
                 skipped += 1
                 message = (skip.get("message") if skip is not None else None) or (
                     skip.text if skip is not None and skip.text else "")
-                lines.append("SKIPPED %s: %s" % (label, message.strip().splitlines()[0] if message.strip() else "(no reason given)"))
+                # gtest puts "file:line" on the first line and the reason after it.
+                reason = message.strip().splitlines()[-1] if message.strip() else "(no reason given)"
+                lines.append("SKIPPED %s: %s" % (label, reason))
             else:
                 passed += 1
     for line in lines:
