@@ -173,15 +173,19 @@ VG_HD int32_t solveTripleRotation(const Vec3f prev[3], const Vec3f cur[3], const
 
   // One-sided Jacobi: rotate column pairs of H (and of V) until they are orthogonal; then
   // H V = U S with U's columns the normalised columns of H V. Fixed sweep count: no divergence.
+  // Jacobi converges quadratically: a sweep that finds every pair orthogonal to float precision
+  // ends the iteration (typically after 3 to 4 of the at most 6 sweeps).
   Vec3f v[3] = {make3(1.f, 0.f, 0.f), make3(0.f, 1.f, 0.f), make3(0.f, 0.f, 1.f)};  // columns of V
   for (int sweep = 0; sweep < 6; ++sweep) {
+    bool rotated = false;
     for (int pair = 0; pair < 3; ++pair) {
       const int i = pair == 2 ? 1 : 0;
       const int j = pair == 0 ? 1 : 2;
       const float alpha = dot(h[i], h[i]);
       const float beta = dot(h[j], h[j]);
       const float gamma = dot(h[i], h[j]);
-      if (fabsf(gamma) <= 1e-12f * sqrtf(alpha * beta) || gamma == 0.f) continue;
+      if (fabsf(gamma) <= 1e-7f * sqrtf(alpha * beta) || gamma == 0.f) continue;
+      rotated = true;
       const float zeta = (beta - alpha) / (2.f * gamma);
       const float t = (zeta >= 0.f ? 1.f : -1.f) / (fabsf(zeta) + sqrtf(1.f + zeta * zeta));
       const float c = 1.f / sqrtf(1.f + t * t);
@@ -192,6 +196,7 @@ VG_HD int32_t solveTripleRotation(const Vec3f prev[3], const Vec3f cur[3], const
       v[i] = c * vi - s * vj;
       v[j] = s * vi + c * vj;
     }
+    if (!rotated) break;
   }
   // Order by singular value so that the two largest define U; the third column of U is their
   // cross product (Kabsch/Umeyama det fix: R = V diag(1, 1, det V) U^T with a proper U).

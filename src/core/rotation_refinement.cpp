@@ -10,6 +10,8 @@ namespace visual_gyro {
 namespace {
 
 constexpr double kRotationGateScale = 1.25;
+// Translation is estimated only when it explains this fraction more matches than pure rotation.
+constexpr double kTranslationGain = 0.15;
 
 Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
   Eigen::Matrix3d m;
@@ -322,7 +324,11 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
   };
   // Samples are scored on every other match (counts doubled); the winner is recounted on all.
   const size_t sample_stride = n >= 200 ? 2 : 1;
-  if (moving.size() >= 2) {
+  // A translation can at best add the moving matches to the rotation inliers; when they are too
+  // few to pass the model selection in refineRotation (kTranslationGain), the search is moot.
+  const bool translation_can_win =
+      moving.size() >= 2 && moving.size() >= kTranslationGain * out.rotation_inliers;
+  if (translation_can_win) {
     uint64_t state = seed ^ 0x5452414E534C4154ull;  // "TRANSLAT"
     // 2-point samples among the moving matches, stopped adaptively: once the best translation
     // explains a fraction w of them, log(0.01) / log(1 - w^2) samples find a clean pair with 99 %
@@ -376,7 +382,7 @@ RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
   // error (the rotation/translation ambiguity of narrow fields of view).
   // The margin also absorbs the outliers that a translation chosen among them explains by chance.
   const int extra = start.epipolar_inliers - start.rotation_inliers;
-  const bool pure = start.translation.isZero() || extra < 0.15 * start.epipolar_inliers;
+  const bool pure = start.translation.isZero() || extra < kTranslationGain * start.epipolar_inliers;
   if (pure) return refinePureRotation(previous, current, start.rotation, threshold, iterations);
   return refineGeneral(previous, current, start.rotation, start.translation, threshold, iterations, warm);
 }
