@@ -359,7 +359,10 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     result.winning_votes = std::max(result.winning_votes, winning);
     for (const Candidate& c : topCandidates(votes, request.grid, settings_.candidates))
       consider(c.rotation_vector);
+    // The prior, and no rotation at all, are candidates too: under strong translation every
+    // rotation-only triple is biased, and the truth is usually closer to one of them.
     if (narrow && prior_usable) consider(prior.rotation_vector);
+    if (narrow) consider(Eigen::Vector3d::Zero());
     if (best.inliers >= needed && result.winning_votes >= settings_.min_votes) break;
   }
   if (best.inliers == 0) return invalidResult("no candidate rotation (all triples degenerate)");
