@@ -372,7 +372,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // search on it finds a better epipole and more inliers; repeat while the inlier set grows.
   for (int round = 1; round <= 1; ++round) {
     const VerifiedRotation again = verifyRotation(previous, current, refined.rotation, threshold, seed + round);
-    if (again.inliers <= refined.inliers) break;
+    // A couple more inliers cannot move the solution measurably; only a clearly larger set is
+    // worth another refinement.
+    if (again.inliers <= refined.inliers + std::max(3, refined.inliers / 50)) break;
     const RefinedRotation next =
         refineRotation(previous, current, again, threshold, settings_.refine_iterations, true);
     if (next.inliers <= refined.inliers) break;

@@ -207,9 +207,12 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
     // The wide early gates only need to move the start into the basin: a few steps suffice.
     const bool last = round + 1 == rounds;
     const int round_iterations = last ? iterations : std::min(iterations, 2);
+    // ... on every other match: enough to find the basin; the last round uses them all.
+    const size_t stride = last || n < 300 ? 1 : 2;
     for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d rc = R * current[i];
-      gate[i] = withinEpipolarGate(t, previous[i], rc, previous[i].cross(rc), gate_width) &&
+      gate[i] = i % stride == 0 &&
+                withinEpipolarGate(t, previous[i], rc, previous[i].cross(rc), gate_width) &&
                 sameHemisphere(previous[i], rc);
     }
     // One pass gives both the cost at (R, t) and the normal equations for the next step, so an
