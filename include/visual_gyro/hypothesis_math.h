@@ -128,6 +128,19 @@ struct TripleOptions {
   float max_angle_change;        ///< max | |p_i-p_j| - |c_i-c_j| | over pairs [rad]; <= 0 disables
 };
 
+/// Swaps two (singular value, column of H V, column of V) triplets.
+VG_HD void swapTriplet(float* sa, Vec3f* ha, Vec3f* va, float* sb, Vec3f* hb, Vec3f* vb) {
+  const float s = *sa;
+  *sa = *sb;
+  *sb = s;
+  const Vec3f h = *ha;
+  *ha = *hb;
+  *hb = h;
+  const Vec3f v = *va;
+  *va = *vb;
+  *vb = v;
+}
+
 /// Solves R (b_prev ~ R b_cur) for one triple. Returns a TripleStatus; R is set only when kTripleOk.
 VG_HD int32_t solveTripleRotation(const Vec3f prev[3], const Vec3f cur[3], const TripleOptions& opt,
                                   Mat3f* R) {
@@ -200,18 +213,20 @@ VG_HD int32_t solveTripleRotation(const Vec3f prev[3], const Vec3f cur[3], const
   }
   // Order by singular value so that the two largest define U; the third column of U is their
   // cross product (Kabsch/Umeyama det fix: R = V diag(1, 1, det V) U^T with a proper U).
-  float sv[3] = {norm(h[0]), norm(h[1]), norm(h[2])};
-  int o0 = 0, o1 = 1, o2 = 2;
-  if (sv[o1] > sv[o0]) { int tmp = o0; o0 = o1; o1 = tmp; }
-  if (sv[o2] > sv[o0]) { int tmp = o0; o0 = o2; o2 = tmp; }
-  if (sv[o2] > sv[o1]) { int tmp = o1; o1 = o2; o2 = tmp; }
-  if (!(sv[o1] > 1e-7f * sv[o0]) || !(sv[o0] > 0.f)) return kTripleCollinear;
-  const Vec3f u0 = (1.f / sv[o0]) * h[o0];
-  Vec3f u1 = h[o1] - dot(u0, h[o1]) * u0;
+  // Values are swapped rather than indexed: dynamic indexing would put the arrays in local memory
+  // on the GPU. Strict comparisons keep the order of ties, identical on every backend.
+  float s0 = norm(h[0]), s1 = norm(h[1]), s2 = norm(h[2]);
+  Vec3f h0 = h[0], h1 = h[1], h2 = h[2];
+  Vec3f v0 = v[0], v1 = v[1], v2 = v[2];
+  if (s1 > s0) { swapTriplet(&s0, &h0, &v0, &s1, &h1, &v1); }
+  if (s2 > s0) { swapTriplet(&s0, &h0, &v0, &s2, &h2, &v2); }
+  if (s2 > s1) { swapTriplet(&s1, &h1, &v1, &s2, &h2, &v2); }
+  (void)h2;
+  if (!(s1 > 1e-7f * s0) || !(s0 > 0.f)) return kTripleCollinear;
+  const Vec3f u0 = (1.f / s0) * h0;
+  Vec3f u1 = h1 - dot(u0, h1) * u0;
   u1 = (1.f / norm(u1)) * u1;
   const Vec3f u2 = cross(u0, u1);
-  const Vec3f v0 = v[o0], v1 = v[o1];
-  Vec3f v2 = v[o2];
   const float detV = dot(v0, cross(v1, v2));
   if (detV < 0.f) v2 = -1.f * v2;
   // R = sum_k v_k u_k^T
