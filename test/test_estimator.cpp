@@ -382,3 +382,22 @@ TEST(Angles, YawPitchRollConvention) {
   const Matrix3d right_turn = rotationFromYpr(0.2, 0, 0);
   EXPECT_GT((right_turn * Vector3d::UnitZ()).x(), 0.0);
 }
+
+TEST(PriorTracker, RescalesToTheIntervalAndForgetsAfterAnInvalidEstimate) {
+  vg::PriorTracker tracker;
+  EXPECT_FALSE(tracker.priorFor(0.1).valid);
+  vg::RotationResult r;
+  r.valid = true;
+  r.rotation_vector = Vector3d(0.0, 0.02, 0.0);
+  tracker.update(r, 0.1);
+  const vg::RotationPrior half = tracker.priorFor(0.05);
+  ASSERT_TRUE(half.valid);
+  EXPECT_TRUE(half.rotation_vector.isApprox(Vector3d(0.0, 0.01, 0.0)));
+  r.valid = false;
+  tracker.update(r, 0.1);
+  EXPECT_FALSE(tracker.priorFor(0.1).valid);
+  r.valid = true;
+  tracker.update(r, 0.1);
+  tracker.reset();
+  EXPECT_FALSE(tracker.priorFor(0.1).valid);
+}

@@ -93,6 +93,22 @@ struct RotationPrior {
   Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();  ///< [rad]
 };
 
+/// Remembers the last valid rotation and offers it as the next frame's prior, rescaled to the new
+/// frame interval (rotation rates change little between frames, rotations per frame change with
+/// the interval). An invalid estimate clears it.
+class PriorTracker {
+ public:
+  /// The prior for a frame `dt` seconds after the previous one (invalid when there is none).
+  RotationPrior priorFor(double dt) const;
+  /// Records the estimate of a frame `dt` seconds after its predecessor.
+  void update(const RotationResult& result, double dt);
+  void reset() { *this = PriorTracker(); }
+
+ private:
+  RotationPrior last_;
+  double last_dt_ = 0.0;
+};
+
 /// Estimates the frame-to-frame rotation from matched unit bearings. Not thread-safe; one per
 /// stream of frames. Never throws on bad input: it returns an invalid result naming the problem.
 class RotationEstimator {

@@ -75,8 +75,7 @@ class VisualGyro {
   double previous_stamp_ = 0.0;
   FrameFeatures previous_features_;
   std::vector<Eigen::Vector3d> previous_keypoint_bearings_;
-  RotationPrior prior_;
-  double prior_dt_ = 0.0;
+  PriorTracker prior_;
 };
 
 }  // namespace visual_gyro

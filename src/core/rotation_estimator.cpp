@@ -151,6 +151,20 @@ double rotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) 
 
 // ---------------------------------------------------------------------------------------------
 
+RotationPrior PriorTracker::priorFor(double dt) const {
+  RotationPrior prior = last_;
+  if (prior.valid && last_dt_ > 0.0 && dt > 0.0) prior.rotation_vector *= dt / last_dt_;
+  return prior;
+}
+
+void PriorTracker::update(const RotationResult& result, double dt) {
+  last_.valid = result.valid;
+  last_.rotation_vector = result.valid ? result.rotation_vector : Eigen::Vector3d::Zero();
+  last_dt_ = dt;
+}
+
+// ---------------------------------------------------------------------------------------------
+
 RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
                                      std::unique_ptr<HypothesisVoter> voter)
     : settings_(settings), voter_(std::move(voter)) {

@@ -38,8 +38,7 @@ void VisualGyro::reset() {
   has_previous_ = false;
   previous_features_ = FrameFeatures();
   previous_keypoint_bearings_.clear();
-  prior_ = RotationPrior();
-  prior_dt_ = 0.0;
+  prior_.reset();
 }
 
 void VisualGyro::setCamera(const CameraModel& camera) {
@@ -115,21 +114,14 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
       result.current_bearings.push_back(bearings[m.current]);
     }
     if (settings_.run_estimator) {
-      // The previous rotation, rescaled to this interval, centres the vote window: rotation rates
-      // change little between frames, rotations per frame change with the frame interval.
-      RotationPrior prior = prior_;
-      if (prior.valid && prior_dt_ > 0.0) prior.rotation_vector *= dt / prior_dt_;
-      result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings, prior);
+      result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
+                                             prior_.priorFor(dt));
+      prior_.update(result.rotation, dt);
       result.has_estimate = result.rotation.valid;
       result.error = result.rotation.error;
       if (result.rotation.valid) {
         result.angular_velocity = result.rotation.rotation_vector / dt;
         result.angular_velocity_covariance = result.rotation.covariance / (dt * dt);
-        prior_.valid = true;
-        prior_.rotation_vector = result.rotation.rotation_vector;
-        prior_dt_ = dt;
-      } else {
-        prior_.valid = false;
       }
     }
   }

@@ -558,22 +558,17 @@ class OwnEstimatorRunner : public MethodRunner {
         })) {}
 
   MethodEstimate run(const FramePair& pair) override {
-    RotationPrior prior = prior_;
-    if (prior.valid && prior_dt_ > 0.0) prior.rotation_vector *= pair.dt / prior_dt_;
+    const RotationPrior prior = prior_.priorFor(pair.dt);
     const auto start = std::chrono::steady_clock::now();
     const RotationResult r = estimator_->estimate(pair.previous, pair.current, prior);
     MethodEstimate out;
     out.estimate_ms = elapsedMs(start);
+    prior_.update(r, pair.dt);
     out.valid = r.valid;
     out.error = r.error;
     if (r.valid) {
       out.rotation = r.rotation;
       out.rotation_vector = r.rotation_vector;
-      prior_.valid = true;
-      prior_.rotation_vector = r.rotation_vector;
-      prior_dt_ = pair.dt;
-    } else {
-      prior_.valid = false;
     }
     return out;
   }
@@ -581,8 +576,7 @@ class OwnEstimatorRunner : public MethodRunner {
 
  private:
   std::unique_ptr<RotationEstimator> estimator_;
-  RotationPrior prior_;
-  double prior_dt_ = 0.0;
+  PriorTracker prior_;  // the same prior VisualGyro gives its estimator
 };
 
 /// OpenCV / OpenGV baselines; the eigensolver starts from this method's previous valid estimate.
