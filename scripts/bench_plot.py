@@ -6,7 +6,8 @@ results.csv, table.md and PNG plots. Run by scripts/bench.sh with Debian's pytho
 Inputs:
   --results  results.jsonl: evaluate's JSON objects plus group (shared, rendered, outliers,
              translation), label and x (outlier fraction or frame stride) added by bench.sh
-  --sweep    CSV of `evaluate --timing-sweep` (method, backend, hypotheses, matches, ms_mean, ...)
+  --sweep    CSVs of `evaluate --timing-sweep` (series, method, backend, hypotheses, matches,
+             real_fraction, ms_mean, ...), one per backend
   --gpu-dir  folder of CSVs from the GPU stand-alone bench; any with a `hypotheses` column and a
              time column (ms_mean, ms, time_ms or kernel_ms) joins the timing plots
 """
@@ -129,29 +130,75 @@ def write_table(rows, methods, path, machine, sweep_rows):
         out.append(f"| {label} | {fmt(any_row.get('matches_mean'), 0)} | {fmt(front, 1)} | "
                    + " | ".join(cells) + " |")
     if sweep_rows:
-        out.append("\n## CPU estimation time vs matches [ms] (default hypotheses for vote/paper; "
-                   f"{sweep_rows[0].get('dataset', '')})\n")
-        hyp_default = default_hypotheses(sweep_rows)
-        match_values = sorted({int(r["matches"]) for r in sweep_rows})
-        sweep_methods = sorted({r["method"] for r in sweep_rows}, key=method_key)
-        out.append("| method | " + " | ".join(str(m) for m in match_values) + " |")
-        out.append("|---" * (len(match_values) + 1) + "|")
-        for m in sweep_methods:
-            cells = []
-            for n in match_values:
-                hit = [r for r in sweep_rows if r["method"] == m and int(r["matches"]) == n
-                       and int(r["hypotheses"]) in (0, hyp_default)]
-                cells.append(fmt(hit[0]["ms_mean"], 3) if hit else "-")
-            out.append(f"| {m} | " + " | ".join(cells) + " |")
+        out.extend(sweep_tables(sweep_rows))
     with open(path, "w") as f:
         f.write("\n".join(out) + "\n")
 
 
-def default_hypotheses(sweep_rows):
-    hyps = sorted({int(r["hypotheses"]) for r in sweep_rows if int(r["hypotheses"]) > 0})
-    if not hyps:
-        return 0
-    return 2000 if 2000 in hyps else hyps[len(hyps) // 2]
+def fmt_cell(v):
+    """A sweep table cell: '-' where the method has no such point."""
+    return "-" if math.isnan(v) else f"{v:.3f}"
+
+
+def sweep_keys(rows):
+    """(method, backend) pairs of sweep rows, vote/paper first, CPU before CUDA."""
+    return sorted({(r["method"], r["backend"]) for r in rows}, key=lambda k: (method_key(k[0]), k[1]))
+
+
+def sweep_point(rows, series, method, backend, x_key, x):
+    hit = [r for r in rows if r["series"] == series and r["method"] == method and r["backend"] == backend
+           and int(r[x_key]) == x]
+    return float(hit[0]["ms_mean"]) if hit else float("nan")
+
+
+def sweep_tables(rows):
+    """Markdown tables of `evaluate --timing-sweep` rows (series hypotheses and matches), with the
+    CUDA speed-up over the CPU where both backends ran."""
+    out = []
+    dataset = rows[0].get("dataset", "")
+    hyp_rows = [r for r in rows if r["series"] == "hypotheses"]
+    match_rows = [r for r in rows if r["series"] == "matches"]
+    if hyp_rows:
+        at = int(hyp_rows[0]["matches"])
+        hyps = sorted({int(r["hypotheses"]) for r in hyp_rows if int(r["hypotheses"]) > 0})
+        out.append(f"\n## Estimation time vs hypotheses [ms] ({dataset}, {at} matches; methods without a "
+                   "hypothesis count run their own adaptive RANSAC once)\n")
+        out.append("| method | backend | " + " | ".join(str(h) for h in hyps) + " | adaptive |")
+        out.append("|---" * (len(hyps) + 3) + "|")
+        for method, backend in sweep_keys(hyp_rows):
+            cells = [fmt_cell(sweep_point(hyp_rows, "hypotheses", method, backend, "hypotheses", h)) for h in hyps]
+            own = fmt_cell(sweep_point(hyp_rows, "hypotheses", method, backend, "hypotheses", 0))
+            out.append(f"| {method} | {backend} | " + " | ".join(cells) + f" | {own} |")
+        out.extend(speedup_rows(hyp_rows, "hypotheses", "hypotheses", hyps, extra_cells=1))
+    if match_rows:
+        at = max(int(r["hypotheses"]) for r in match_rows)
+        ms = sorted({int(r["matches"]) for r in match_rows})
+        real = {int(r["matches"]): float(r.get("real_fraction") or 1.0) for r in match_rows}
+        out.append(f"\n## Estimation time vs matches [ms] ({dataset}; vote/paper at {at} hypotheses)\n")
+        out.append("| method | backend | " + " | ".join(str(m) for m in ms) + " |")
+        out.append("|---" * (len(ms) + 2) + "|")
+        out.append("| (real matches) | | " + " | ".join(f"{100 * real[m]:.0f} %" for m in ms) + " |")
+        for method, backend in sweep_keys(match_rows):
+            cells = [fmt_cell(sweep_point(match_rows, "matches", method, backend, "matches", m)) for m in ms]
+            out.append(f"| {method} | {backend} | " + " | ".join(cells) + " |")
+        out.extend(speedup_rows(match_rows, "matches", "matches", ms))
+        if any(v < 1.0 for v in real.values()):
+            out.append("\nWhere fewer than 100 % of the matches are real, the pairs were topped up with "
+                       "copies of their own matches, each bearing jittered by half a pixel.")
+    return out
+
+
+def speedup_rows(rows, series, x_key, xs, extra_cells=0):
+    """CPU time / CUDA time per method and x, when both backends ran."""
+    out = []
+    for method in sorted({r["method"] for r in rows if r["backend"] == "cuda"}, key=method_key):
+        cells = []
+        for x in xs:
+            cpu = sweep_point(rows, series, method, "cpu", x_key, x)
+            gpu = sweep_point(rows, series, method, "cuda", x_key, x)
+            cells.append(f"{cpu / gpu:.1f}x" if cpu == cpu and gpu == gpu and gpu > 0 else "-")
+        out.append(f"| {method} speed-up | cuda vs cpu | " + " | ".join(cells + ["-"] * extra_cells) + " |")
+    return out
 
 
 def bar_plot(rows, methods, key, ylabel, title, path, log=True, groups=("shared", "rendered")):
@@ -245,48 +292,59 @@ def load_gpu(gpu_dir):
 
 
 def timing_plots(sweep_rows, gpu_rows, out):
-    """Left: time vs hypotheses; right: time vs matches. CPU sweep rows are whole estimators on
-    real matches; GPU-bench rows time the hypothesis voter alone (CPU gold and CUDA)."""
+    """Left: time vs hypotheses; right: time vs matches. Sweep rows (solid) are whole estimators on
+    real matches (per backend; baselines without a hypothesis count as horizontal lines on the
+    left); GPU-bench rows (dashed) time the hypothesis voter alone (CPU gold and CUDA)."""
     if not sweep_rows and not gpu_rows:
         return
     fig, axes = plt.subplots(1, 2, figsize=(13, 5))
-    hyp_default = default_hypotheses(sweep_rows) if sweep_rows else 0
-    max_matches = max((int(r["matches"]) for r in sweep_rows), default=0)
 
-    def curve(ax, key, pts, label, style):
+    def curve(ax, pts, label, style):
         pts = sorted(pts)
         if len(pts) < 2:
-            return
+            return None
         xs, ys = zip(*pts)
-        ax.plot(xs, ys, style, marker="o", label=label)
+        return ax.plot(xs, ys, style, marker="o", label=label)[0]
 
     # Time vs hypotheses.
     ax = axes[0]
-    for m in sorted({r["method"] for r in sweep_rows if int(r["hypotheses"]) > 0}, key=method_key):
-        pts = [(int(r["hypotheses"]), float(r["ms_mean"])) for r in sweep_rows
-               if r["method"] == m and int(r["matches"]) == max_matches and int(r["hypotheses"]) > 0]
-        curve(ax, "hypotheses", pts, f"{m} estimator (cpu, {max_matches} matches)", "-")
+    hyp_rows = [r for r in sweep_rows if r["series"] == "hypotheses"]
+    at_matches = int(hyp_rows[0]["matches"]) if hyp_rows else 0
+    for method, backend in sweep_keys(hyp_rows):
+        own = [r for r in hyp_rows if r["method"] == method and r["backend"] == backend]
+        pts = [(int(r["hypotheses"]), float(r["ms_mean"])) for r in own if int(r["hypotheses"]) > 0]
+        if pts:
+            curve(ax, pts, f"{method} ({backend})", "-")
+        else:
+            ax.axhline(float(own[0]["ms_mean"]), linestyle=":", color=f"C{method_key(method)[0] % 10}",
+                       label=f"{method} ({backend}, adaptive RANSAC)")
     for key in sorted({(r["method"], r["backend"], r["source"]) for r in gpu_rows if r["series"] in ("", "hypotheses")}):
         sel = [r for r in gpu_rows if (r["method"], r["backend"], r["source"]) == key and r["series"] in ("", "hypotheses")]
         n = max(int(r["matches"]) for r in sel)
         pts = [(int(r["hypotheses"]), float(r["ms_mean"])) for r in sel if int(r["matches"]) == n]
-        curve(ax, "hypotheses", pts, f"{key[0]} ({key[1]}, {n} matches) [{key[2]}]", "--")
+        curve(ax, pts, f"{key[0]} ({key[1]}, {n} matches) [{key[2]}]", "--")
     ax.set_xlabel("hypotheses per frame")
-    ax.set_title("estimation time vs hypotheses")
+    ax.set_title(f"estimation time vs hypotheses ({at_matches} matches)")
 
     # Time vs matches.
     ax = axes[1]
-    for m in sorted({r["method"] for r in sweep_rows}, key=method_key):
-        pts = [(int(r["matches"]), float(r["ms_mean"])) for r in sweep_rows
-               if r["method"] == m and int(r["hypotheses"]) in (0, hyp_default)]
-        curve(ax, "matches", pts, f"{m} (cpu)", "-")
+    match_rows = [r for r in sweep_rows if r["series"] == "matches"]
+    at_hyps = max((int(r["hypotheses"]) for r in match_rows), default=0)
+    for method, backend in sweep_keys(match_rows):
+        pts = [(int(r["matches"]), float(r["ms_mean"])) for r in match_rows
+               if r["method"] == method and r["backend"] == backend]
+        curve(ax, pts, f"{method} ({backend})", "-")
+    topped = sorted(int(r["matches"]) for r in match_rows if float(r.get("real_fraction") or 1.0) < 1.0)
+    if topped:
+        ax.axvspan(topped[0] / 1.2, topped[-1] * 1.2, color="0.9", zorder=0,
+                   label="pairs topped up with jittered copies")
     for key in sorted({(r["method"], r["backend"], r["source"]) for r in gpu_rows if r["series"] in ("", "matches")}):
         sel = [r for r in gpu_rows if (r["method"], r["backend"], r["source"]) == key and r["series"] in ("", "matches")]
         h = max(int(r["hypotheses"]) for r in sel)
         pts = [(int(r["matches"]), float(r["ms_mean"])) for r in sel if int(r["hypotheses"]) == h]
-        curve(ax, "matches", pts, f"{key[0]} ({key[1]}, {h} hyp.) [{key[2]}]", "--")
+        curve(ax, pts, f"{key[0]} ({key[1]}, {h} hyp.) [{key[2]}]", "--")
     ax.set_xlabel("matches per frame pair")
-    ax.set_title(f"estimation time vs matches (vote/paper: {hyp_default} hypotheses)")
+    ax.set_title(f"estimation time vs matches (vote/paper: {at_hyps} hypotheses)")
     for ax in axes:
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -303,7 +361,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--results", required=True)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--sweep", default="")
+    ap.add_argument("--sweep", nargs="*", default=[], help="CSVs of evaluate --timing-sweep (one per backend)")
     ap.add_argument("--gpu-dir", default="")
     ap.add_argument("--machine", default="unknown machine")
     a = ap.parse_args()
@@ -313,7 +371,7 @@ def main():
         print("[bench_plot] no results to tabulate", file=sys.stderr)
         return 1
     methods = sorted({r["method"] for r in rows}, key=method_key)
-    sweep_rows = read_csv(a.sweep) if a.sweep and os.path.exists(a.sweep) else []
+    sweep_rows = [r for path in a.sweep if os.path.exists(path) for r in read_csv(path)]
     gpu_rows = load_gpu(a.gpu_dir) if a.gpu_dir and os.path.isdir(a.gpu_dir) else []
 
     write_csv(rows, os.path.join(a.out, "results.csv"))

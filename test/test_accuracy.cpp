@@ -6,12 +6,14 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <sstream>
 #include <string>
 
 #include "test_support.h"
+#include "visual_gyro/rotation_estimator.h"
 
 namespace {
 
@@ -21,7 +23,10 @@ double jsonNumber(const std::string& line, const std::string& key) {
   const std::string needle = "\"" + key + "\": ";
   const size_t at = line.find(needle);
   if (at == std::string::npos) return std::nan("");
-  return std::strtod(line.c_str() + at + needle.size(), nullptr);
+  const char* value = line.c_str() + at + needle.size();
+  char* end = nullptr;
+  const double number = std::strtod(value, &end);
+  return end == value ? std::nan("") : number;  // e.g. null: no such figure for this sequence
 }
 
 std::string jsonString(const std::string& line, const std::string& key) {
@@ -59,6 +64,7 @@ Figures evaluate(const std::string& folder, const std::string& methods, const st
     for (const char* key : {"frames", "invalid", "rot_rmse_deg", "rot_max_deg", "yaw_rmse_deg",
                             "yaw_max_deg", "mean_rate_dps"})
       figures[method + "." + key] = jsonNumber(line, key);
+    figures[method + ".backend_is_cuda"] = jsonString(line, "backend") == "cuda" ? 1.0 : 0.0;
   }
   EXPECT_FALSE(figures.empty()) << "no JSON line from evaluate:\n" << output;
   return figures;
@@ -107,6 +113,41 @@ TEST(EurocStatic, NoFalseRotationWhenStandingStill) {
   record(f);
   EXPECT_EQ(f.at("vote.frames"), 94);
   EXPECT_LE(f.at("vote.mean_rate_dps"), 0.3);
+}
+
+// Issue 5's goal: the CUDA backend gives the CPU backend's figures (within 5 %) on every shared
+// sequence. Both runs use the same matches and seeds; they differ only by float rounding in the
+// hypotheses (see cuda/README.md), so the refined estimates agree far closer than 5 %.
+TEST(SharedSequences, CudaBackendGivesTheCpuFigures) {
+  std::string why;
+  if (!visual_gyro::cudaBackendUsable(&why)) GTEST_SKIP() << "GPU test skipped: " << why;
+  int compared = 0;
+  for (const char* name : {"kitti_turn", "kitti_straight", "euroc_v101_static"}) {
+    std::string missing;
+    const std::string folder = sharedOrSkip(name, &missing);
+    if (folder.empty()) {
+      std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
+      continue;
+    }
+    const Figures cpu = evaluate(folder, "paper,vote", "--backend cpu");
+    const Figures gpu = evaluate(folder, "paper,vote", "--backend cuda");
+    record(gpu);
+    for (const char* method : {"paper", "vote"}) {
+      const std::string m = method;
+      EXPECT_EQ(gpu.at(m + ".backend_is_cuda"), 1.0) << name << " " << m << ": the CUDA run fell back to the CPU";
+      EXPECT_EQ(gpu.at(m + ".frames"), cpu.at(m + ".frames")) << name << " " << m;
+      EXPECT_EQ(gpu.at(m + ".invalid"), cpu.at(m + ".invalid")) << name << " " << m;
+      // 5 % of the CPU figure, plus 1e-3 (deg or deg/s) so that figures near zero are not held
+      // to an impossible relative bound.
+      for (const char* key : {"rot_rmse_deg", "yaw_rmse_deg", "rot_max_deg", "mean_rate_dps"}) {
+        const double c = cpu.at(m + "." + key), g = gpu.at(m + "." + key);
+        if (std::isnan(c) && std::isnan(g)) continue;  // e.g. no rotation truth on EuRoC
+        EXPECT_NEAR(g, c, 0.05 * std::abs(c) + 1e-3) << name << " " << m << " " << key;
+      }
+    }
+    ++compared;
+  }
+  if (compared == 0) GTEST_SKIP() << "no shared sequence present under the data folder";
 }
 
 class Rendered : public ::testing::Test {

@@ -356,11 +356,29 @@ TEST(Estimator, CudaRequestFallsBackToCpuWithOneWarning) {
   vg::EstimatorSettings s = cpuSettings("vote");
   s.backend = "cuda";
   std::vector<std::string> warnings;
+  std::string why;
+  const bool usable = vg::cudaBackendUsable(&why);
   auto est = vg::createRotationEstimator(s, [&](const std::string& w) { warnings.push_back(w); });
-  if (est->backendName() == "cuda") GTEST_SKIP() << "a CUDA device works here: no fallback to test";
+  if (usable) {
+    EXPECT_EQ(est->backendName(), "cuda");
+    EXPECT_TRUE(warnings.empty());
+    GTEST_SKIP() << "a CUDA device works here: the fallback cannot be exercised";
+  }
+  EXPECT_FALSE(why.empty());
   EXPECT_EQ(est->backendName(), "cpu");
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("CPU"), std::string::npos) << warnings[0];
+}
+
+TEST(Estimator, AutoBackendPicksCudaExactlyWhenUsable) {
+  vg::EstimatorSettings s = cpuSettings("vote");
+  s.backend = "auto";
+  std::vector<std::string> warnings;
+  auto est = vg::createRotationEstimator(s, [&](const std::string& w) { warnings.push_back(w); });
+  EXPECT_EQ(est->backendName(), vg::cudaBackendUsable() ? "cuda" : "cpu");
+  // auto without CUDA compiled in is silent; with CUDA compiled in but no device, one warning.
+  EXPECT_LE(warnings.size(), 1u);
+  if (!vg::cudaBackendCompiled()) EXPECT_TRUE(warnings.empty());
 }
 
 TEST(Estimator, SameSeedIsReproducible) {

@@ -155,6 +155,11 @@ std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettin
 /// True when this build has the CUDA backend compiled in.
 bool cudaBackendCompiled();
 
+/// True when backend "auto" would pick CUDA here: the build has it and device 0 works (driver,
+/// compute capability >= 7.5, kernels loadable). Otherwise false with the reason in *why (may be
+/// null), e.g. "this build has no CUDA support" or "no usable CUDA device: ...".
+bool cudaBackendUsable(std::string* why = nullptr);
+
 /// Yaw, pitch, roll of R = Ry(yaw) Rx(pitch) Rz(roll) [rad] (camera axes x right, y down, z fwd).
 Eigen::Vector3d yawPitchRoll(const Eigen::Matrix3d& rotation);
 

@@ -421,6 +421,15 @@ bool cudaBackendCompiled() {
 #endif
 }
 
+bool cudaBackendUsable(std::string* why) {
+#ifdef VISUAL_GYRO_WITH_CUDA
+  return cudaDeviceAvailable(why);
+#else
+  if (why != nullptr) *why = "this build has no CUDA support";
+  return false;
+#endif
+}
+
 std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettings& settings,
                                                            const WarningSink& warn) {
   const std::string problem = validateSettings(settings);

@@ -60,12 +60,17 @@ const char* const kUsage =
     "  --max-matches N        use at most N matches per pair (a deterministic random subset)\n"
     "  --export-bearings FILE write the matched bearings of every pair (text)\n"
     "  --set key=value        front-end or estimator setting (repeatable), e.g. --set yaw_bin_deg=0.2\n"
-    "  --timing-sweep FILE    time the estimators over hypotheses x matches (CSV), no evaluation\n"
-    "  --sweep-hypotheses L   hypotheses of the sweep (default 250,500,1000,2000,4000,8000)\n"
-    "  --sweep-matches L      matches of the sweep (default 50,100,200,400,700)\n"
+    "  --timing-sweep FILE    time the estimators (CSV), no evaluation: series 'hypotheses'\n"
+    "                         (vote/paper over L_h at M matches; other methods once at M) and\n"
+    "                         series 'matches' (every method over L_m, vote/paper at H hypotheses)\n"
+    "  --sweep-hypotheses L_h default 100,300,1000,3000,10000,30000,100000\n"
+    "  --sweep-matches L_m    default 250,500,1000,2000,4000,8000\n"
+    "  --sweep-at-matches M   matches of the hypotheses series (default 2000)\n"
+    "  --sweep-at-hypotheses H  hypotheses of the matches series (default 10000)\n"
     "  --sweep-repeats R      runs per pair in the sweep; the fastest counts (default 3)\n"
     "  --quiet                summary and JSON only (no progress)\n"
-    "  --list-methods         print the methods this build has, comma-separated, and exit\n";
+    "  --list-methods         print the methods this build has, comma-separated, and exit\n"
+    "  --list-backends        print the backends that work here (cpu[,cuda]; why not cuda on stderr)\n";
 
 // ---------------------------------------------------------------------------------------------
 // Small helpers
@@ -200,8 +205,10 @@ struct Options {
   std::string export_bearings;
   std::vector<std::string> sets;
   std::string timing_sweep;
-  std::vector<int> sweep_hypotheses{250, 500, 1000, 2000, 4000, 8000};
-  std::vector<int> sweep_matches{50, 100, 200, 400, 700};
+  std::vector<int> sweep_hypotheses{100, 300, 1000, 3000, 10000, 30000, 100000};
+  std::vector<int> sweep_matches{250, 500, 1000, 2000, 4000, 8000};
+  int sweep_at_matches = 2000;
+  int sweep_at_hypotheses = 10000;
   int sweep_repeats = 3;
   bool quiet = false;
 };
@@ -286,8 +293,20 @@ Options parseOptions(int argc, char** argv) {
       o.timing_sweep = value();
     } else if (a == "--sweep-hypotheses") {
       o.sweep_hypotheses = parseIntList(value(), a);
+      for (int h : o.sweep_hypotheses)
+        if (h > 10000000) throw UsageError("--sweep-hypotheses: " + std::to_string(h) + " is above 10000000");
     } else if (a == "--sweep-matches") {
       o.sweep_matches = parseIntList(value(), a);
+      for (int m : o.sweep_matches)
+        if (m < 8) throw UsageError("--sweep-matches: " + std::to_string(m) + " is below 8");
+    } else if (a == "--sweep-at-matches") {
+      const long long m = parseInt(value(), a);
+      if (m < 8 || m > 1000000) throw UsageError("--sweep-at-matches must be in 8..1000000");
+      o.sweep_at_matches = static_cast<int>(m);
+    } else if (a == "--sweep-at-hypotheses") {
+      const long long h = parseInt(value(), a);
+      if (h < 1 || h > 10000000) throw UsageError("--sweep-at-hypotheses must be in 1..10000000");
+      o.sweep_at_hypotheses = static_cast<int>(h);
     } else if (a == "--sweep-repeats") {
       const long long r = parseInt(value(), a);
       if (r <= 0 || r > 1000) throw UsageError("--sweep-repeats must be in 1..1000");
@@ -298,6 +317,12 @@ Options parseOptions(int argc, char** argv) {
       std::string list = "vote,paper";
       for (const auto& n : baselineNames()) list += "," + n;
       std::cout << list << "\n";
+      std::exit(0);
+    } else if (a == "--list-backends") {
+      std::string why;
+      const bool cuda = cudaBackendUsable(&why);
+      if (!cuda) std::cerr << "evaluate: no CUDA backend: " << why << std::endl;
+      std::cout << (cuda ? "cpu,cuda" : "cpu") << std::endl;
       std::exit(0);
     } else if (!a.empty() && a[0] == '-') {
       throw UsageError("unknown option " + a);
@@ -813,47 +838,90 @@ void writeCsv(const std::string& path, const std::vector<MethodSummary>& all) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Timing sweep (make bench): estimate time over hypotheses x matches on the same pairs
+// Timing sweep (make bench): estimate time over hypotheses and over matches on the same pairs
 // ---------------------------------------------------------------------------------------------
 
+/// Brings a pair to exactly `matches` matches for the timing sweep: a random subset when it has
+/// more, else all of its matches plus copies of random ones, each bearing turned by a random angle
+/// of about `jitter_rad` (so no two are identical). Returns the fraction of real matches.
+double resampleForTiming(int matches, uint64_t seed, double jitter_rad, FramePair* p) {
+  const size_t n = p->previous.size();
+  if (n >= static_cast<size_t>(matches)) {
+    subsample(matches, seed, p);
+    return 1.0;
+  }
+  std::mt19937_64 rng(seed * 0x2545F4914F6CDD1Dull + p->index);
+  std::uniform_int_distribution<size_t> pick(0, n - 1);
+  std::normal_distribution<double> noise(0.0, jitter_rad);
+  auto jitter = [&](const Eigen::Vector3d& b) {
+    return Eigen::Vector3d(b + Eigen::Vector3d(noise(rng), noise(rng), noise(rng))).normalized();
+  };
+  while (p->previous.size() < static_cast<size_t>(matches)) {
+    const size_t i = pick(rng);
+    p->previous.push_back(jitter(p->previous[i]));
+    p->current.push_back(jitter(p->current[i]));
+  }
+  return static_cast<double>(n) / matches;
+}
+
+/// Timing sweep (make bench): estimation time of every method on the same pairs, in two series as
+/// the paper plots them: over hypotheses at a fixed number of matches (methods without a
+/// hypothesis count, the OpenCV and OpenGV RANSACs, run once there with their own adaptive
+/// iteration count), and over matches at a fixed number of hypotheses. Pairs with fewer matches than
+/// asked are topped up with jittered copies (column real_fraction says how much was real).
 void timingSweep(const Sequence& seq, const Options& o, const EstimatorSettings& est,
                  const BaselineSettings& base, const std::vector<FramePair>& pairs) {
+  struct Point {
+    const char* series;
+    int hypotheses;  // 0: the method's own (baselines)
+    int matches;
+  };
   std::ofstream f(o.timing_sweep);
   if (!f) throw DataError("cannot write " + o.timing_sweep);
-  f << "source,dataset,method,backend,hypotheses,matches,pairs,ms_mean,ms_median,ms_min\n";
+  f << "source,dataset,series,method,backend,hypotheses,matches,pairs,real_fraction,ms_mean,ms_median,ms_min\n";
   std::cout << "timing sweep on " << seq.name << " (" << pairs.size() << " pairs; per pair the fastest of "
             << o.sweep_repeats << " runs)\n";
-  std::printf("%-22s %-6s %10s %8s %6s %10s %10s\n", "method", "backend", "hypotheses", "matches", "pairs",
-              "ms_mean", "ms_median");
+  std::printf("%-10s %-22s %-6s %10s %8s %6s %6s %10s %10s\n", "series", "method", "backend", "hypotheses",
+              "matches", "pairs", "real", "ms_mean", "ms_median");
+  const double jitter_rad = 0.5 / seq.camera.fx();  // half a pixel
   for (const std::string& method : o.methods) {
-    const std::vector<int> hyps = isOwnMethod(method) ? o.sweep_hypotheses : std::vector<int>{0};
-    for (int h : hyps) {
-      for (int m : o.sweep_matches) {
-        EstimatorSettings s = est;
-        if (h > 0) s.hypotheses = h;
-        std::unique_ptr<MethodRunner> runner = makeRunner(method, s, base);
-        std::vector<double> ms;
-        for (const FramePair& p0 : pairs) {
-          if (p0.previous.size() < static_cast<size_t>(m)) continue;
-          FramePair p = p0;
-          subsample(m, o.has_seed ? o.seed : est.seed, &p);
-          // The fastest of a few runs: the machine is shared, the minimum is the estimator's own cost.
-          double best = std::numeric_limits<double>::infinity();
-          for (int rep = 0; rep < o.sweep_repeats; ++rep) best = std::min(best, runner->run(p).estimate_ms);
-          ms.push_back(best);
-        }
-        if (ms.empty()) continue;
-        std::vector<double> sorted = ms;
-        std::sort(sorted.begin(), sorted.end());
-        double mean = 0;
-        for (double v : ms) mean += v;
-        mean /= ms.size();
-        const double median = sorted[sorted.size() / 2];
-        f << "evaluate," << seq.name << ',' << method << ',' << runner->backend() << ',' << h << ',' << m << ','
-          << ms.size() << ',' << mean << ',' << median << ',' << sorted.front() << '\n';
-        std::printf("%-22s %-6s %10d %8d %6zu %10.3f %10.3f\n", method.c_str(), runner->backend().c_str(), h, m,
-                    ms.size(), mean, median);
+    const bool own = isOwnMethod(method);
+    std::vector<Point> points;
+    if (own) {
+      for (int h : o.sweep_hypotheses) points.push_back({"hypotheses", h, o.sweep_at_matches});
+    } else {
+      points.push_back({"hypotheses", 0, o.sweep_at_matches});
+    }
+    for (int m : o.sweep_matches) points.push_back({"matches", own ? o.sweep_at_hypotheses : 0, m});
+    for (const Point& point : points) {
+      EstimatorSettings s = est;
+      if (point.hypotheses > 0) s.hypotheses = point.hypotheses;
+      std::unique_ptr<MethodRunner> runner = makeRunner(method, s, base);
+      std::vector<double> ms;
+      double real = 0.0;
+      for (const FramePair& p0 : pairs) {
+        if (p0.previous.size() < 8) continue;
+        FramePair p = p0;
+        real += resampleForTiming(point.matches, o.has_seed ? o.seed : est.seed, jitter_rad, &p);
+        // The fastest of a few runs: the machine is shared, the minimum is the estimator's own cost.
+        double best = std::numeric_limits<double>::infinity();
+        for (int rep = 0; rep < o.sweep_repeats; ++rep) best = std::min(best, runner->run(p).estimate_ms);
+        ms.push_back(best);
       }
+      if (ms.empty()) continue;
+      real /= ms.size();
+      std::vector<double> sorted = ms;
+      std::sort(sorted.begin(), sorted.end());
+      double mean = 0;
+      for (double v : ms) mean += v;
+      mean /= ms.size();
+      const double median = sorted[sorted.size() / 2];
+      f << "evaluate," << seq.name << ',' << point.series << ',' << method << ',' << runner->backend() << ','
+        << point.hypotheses << ',' << point.matches << ',' << ms.size() << ',' << real << ',' << mean << ','
+        << median << ',' << sorted.front() << '\n';
+      std::printf("%-10s %-22s %-6s %10d %8d %6zu %6.2f %10.3f %10.3f\n", point.series, method.c_str(),
+                  runner->backend().c_str(), point.hypotheses, point.matches, ms.size(), real, mean, median);
+      std::fflush(stdout);
     }
   }
   if (!f) throw DataError("cannot write " + o.timing_sweep);
