@@ -169,6 +169,7 @@ def sweep_tables(rows):
             cells = [fmt_cell(sweep_point(hyp_rows, "hypotheses", method, backend, "hypotheses", h)) for h in hyps]
             own = fmt_cell(sweep_point(hyp_rows, "hypotheses", method, backend, "hypotheses", 0))
             out.append(f"| {method} | {backend} | " + " | ".join(cells) + f" | {own} |")
+        out.extend(split_rows(hyp_rows, "hypotheses", hyps, extra_cells=1))
         out.extend(speedup_rows(hyp_rows, "hypotheses", "hypotheses", hyps, extra_cells=1))
     if match_rows:
         at = max(int(r["hypotheses"]) for r in match_rows)
@@ -181,10 +182,28 @@ def sweep_tables(rows):
         for method, backend in sweep_keys(match_rows):
             cells = [fmt_cell(sweep_point(match_rows, "matches", method, backend, "matches", m)) for m in ms]
             out.append(f"| {method} | {backend} | " + " | ".join(cells) + " |")
+        out.extend(split_rows(match_rows, "matches", ms))
         out.extend(speedup_rows(match_rows, "matches", "matches", ms))
         if any(v < 1.0 for v in real.values()):
             out.append("\nWhere fewer than 100 % of the matches are real, the pairs were topped up with "
                        "copies of their own matches, each bearing jittered by half a pixel.")
+    return out
+
+
+def split_rows(rows, x_key, xs, extra_cells=0):
+    """For vote/paper: the estimate split into the voter call and the host part after it
+    (winner read-out, verification, refinement), 'voter / host' in ms."""
+    out = []
+    for method, backend in sweep_keys(rows):
+        sel = [r for r in rows if r["method"] == method and r["backend"] == backend and r.get("vote_ms_mean")]
+        if not sel:
+            continue
+        cells = []
+        for x in xs:
+            hit = [r for r in sel if int(r[x_key]) == x]
+            cells.append(f"{float(hit[0]['vote_ms_mean']):.2f} / {float(hit[0]['refine_ms_mean']):.2f}"
+                         if hit else "-")
+        out.append(f"| {method}: voter / host part | {backend} | " + " | ".join(cells + ["-"] * extra_cells) + " |")
     return out
 
 

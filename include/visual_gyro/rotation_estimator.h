@@ -61,8 +61,16 @@ struct StageTimes {
   double detect = 0.0;
   double describe = 0.0;
   double match = 0.0;
-  double estimate = 0.0;
+  double estimate = 0.0;  ///< the whole estimate = vote + refine
   double total = 0.0;
+  /// Part of estimate spent in the hypothesis voter (host clock: for CUDA upload, kernels,
+  /// download and result), summed over the voter calls of the frame.
+  double vote = 0.0;
+  /// Part of vote spent in GPU kernels (CUDA events); 0 on the CPU backend.
+  double vote_device = 0.0;
+  /// Part of estimate outside the voter, on the host: reading the winner, verification and
+  /// refinement (vote method), angles and covariance.
+  double refine = 0.0;
 };
 
 /// Result of one rotation estimate.
@@ -136,8 +144,13 @@ class RotationEstimator {
   RotationResult estimateVote(const std::vector<Eigen::Vector3d>& previous,
                               const std::vector<Eigen::Vector3d>& current, const RotationPrior& prior);
 
+  /// voter_->vote, with its host and device time added to the frame's vote times.
+  void castVotes(const VoteRequest& request, VoteResult* votes);
+
   EstimatorSettings settings_;
   std::unique_ptr<HypothesisVoter> voter_;
+  double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
+  double vote_device_ms_ = 0.0;  // this frame's kernel time so far
   VoteResult votes_;  // reused: no per-frame allocation once the histogram has its size
   uint64_t frame_count_ = 0;
 };

@@ -187,6 +187,7 @@ RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& p
                                            const std::vector<Eigen::Vector3d>& current,
                                            const RotationPrior& prior) {
   const auto start = std::chrono::steady_clock::now();
+  vote_ms_ = vote_device_ms_ = 0.0;
   RotationResult result;
   const std::string problem = checkBearings(previous, current, settings_.min_matches);
   if (!problem.empty()) {
@@ -206,7 +207,17 @@ RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& p
   result.backend = voter_->name();
   result.times.estimate = elapsedMs(start);
   result.times.total = result.times.estimate;
+  result.times.vote = vote_ms_;
+  result.times.vote_device = vote_device_ms_;
+  result.times.refine = std::max(0.0, result.times.estimate - vote_ms_);
   return result;
+}
+
+void RotationEstimator::castVotes(const VoteRequest& request, VoteResult* votes) {
+  const auto start = std::chrono::steady_clock::now();
+  voter_->vote(request, votes);
+  vote_ms_ += elapsedMs(start);
+  vote_device_ms_ += votes->device_ms;
 }
 
 // The faithful reproduction: centroid-subtracted (by default) Arun rotations of random triples,
@@ -226,7 +237,7 @@ RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3
   request.grid.bin_width = static_cast<float>(settings_.yaw_bin_deg * kDeg);
   request.grid.bins = binsFor(settings_.yaw_window_deg, settings_.yaw_bin_deg);
   VoteResult& votes = votes_;
-  voter_->vote(request, &votes);
+  castVotes(request, &votes);
 
   RotationResult result;
   result.hypotheses_drawn = settings_.hypotheses;
@@ -366,7 +377,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     request.triple = tripleOptions(settings_, false, narrow ? settings_.max_angle_change_deg : 0.0);
     request.seed = seed + (narrow ? 0 : 0x9E3779B97F4A7C15ull);
     VoteResult& votes = votes_;
-    voter_->vote(request, &votes);
+    castVotes(request, &votes);
     result.hypotheses_drawn += settings_.hypotheses;
     result.hypotheses_accepted += static_cast<int>(votes.accepted);
     const int winning = votes.winner >= 0 ? votes.histogram[votes.winner] : 0;

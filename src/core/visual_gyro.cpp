@@ -126,6 +126,9 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     }
   }
   times.estimate = result.rotation.times.estimate;
+  times.vote = result.rotation.times.vote;
+  times.vote_device = result.rotation.times.vote_device;
+  times.refine = result.rotation.times.refine;
   times.total = elapsedMs(start);
   result.rotation.times = times;
 

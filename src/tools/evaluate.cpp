@@ -563,6 +563,9 @@ struct MethodEstimate {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< b_prev ~ R b_cur
   Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();
   double estimate_ms = 0.0;
+  // vote / paper only (NaN for the baselines): the estimate's voter part (host clock), its GPU
+  // kernels (NaN on the CPU backend), and the host part after the vote (see StageTimes).
+  double vote_ms = kNaN, vote_device_ms = kNaN, refine_ms = kNaN;
 };
 
 /// One method with its own state across frames (prior, previous estimate).
@@ -588,6 +591,9 @@ class OwnEstimatorRunner : public MethodRunner {
     const RotationResult r = estimator_->estimate(pair.previous, pair.current, prior);
     MethodEstimate out;
     out.estimate_ms = elapsedMs(start);
+    out.vote_ms = r.times.vote;
+    out.vote_device_ms = r.backend == "cuda" ? r.times.vote_device : kNaN;  // no kernels on the CPU
+    out.refine_ms = r.times.refine;
     prior_.update(r, pair.dt);
     out.valid = r.valid;
     out.error = r.error;
@@ -665,6 +671,7 @@ struct MethodSummary {
   double rot_rmse = kNaN, rot_max = kNaN, yaw_rmse = kNaN, yaw_max = kNaN;
   double mean_rate = kNaN, rate_rmse = kNaN;
   double detect = 0, describe = 0, match = 0, estimate = 0, total = 0;
+  double vote = 0, vote_device = 0, refine = 0;  // NaN for the baselines
   double matches_mean = 0;
   double true_rotation_mean = kNaN;     ///< mean true rotation per pair [deg]
   double true_translation_mean = kNaN;  ///< mean true translation per pair [m]
@@ -726,6 +733,9 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
     s.describe += p.front_end.describe;
     s.match += p.front_end.match;
     s.estimate += e.estimate_ms;
+    s.vote += e.vote_ms;
+    s.vote_device += e.vote_device_ms;
+    s.refine += e.refine_ms;
     s.matches_mean += row.matches;
     s.rows.push_back(row);
   }
@@ -736,6 +746,9 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
     s.describe /= n;
     s.match /= n;
     s.estimate /= n;
+    s.vote /= n;
+    s.vote_device /= n;
+    s.refine /= n;
     s.total = s.detect + s.describe + s.match + s.estimate;
     s.matches_mean /= n;
     s.mean_rate = rate_sum / n;
@@ -783,6 +796,11 @@ void printSummary(const Sequence& seq, const Options& o, const MethodSummary& s)
   std::cout << "   matches         mean " << fmt(s.matches_mean, 1) << "\n";
   std::cout << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
             << fmt(s.match) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
+  if (std::isfinite(s.vote)) {
+    std::cout << "   estimate split  vote " << fmt(s.vote);
+    if (std::isfinite(s.vote_device)) std::cout << " (GPU kernels " << fmt(s.vote_device) << ")";
+    std::cout << ", refine " << fmt(s.refine) << "\n";
+  }
   if (!s.first_error.empty()) std::cout << "   first invalid   " << s.first_error << "\n";
 }
 
@@ -791,6 +809,7 @@ std::string jsonLine(const Sequence& seq, const Options& o, const EstimatorSetti
   JsonObject times;
   times.add("detect", s.detect).add("describe", s.describe).add("match", s.match)
       .add("estimate", s.estimate).add("total", s.total);
+  if (std::isfinite(s.vote)) times.add("vote", s.vote).add("vote_device", s.vote_device).add("refine", s.refine);
   JsonObject j;
   j.add("dataset", seq.name)
       .add("method", s.method)
@@ -878,7 +897,8 @@ void timingSweep(const Sequence& seq, const Options& o, const EstimatorSettings&
   };
   std::ofstream f(o.timing_sweep);
   if (!f) throw DataError("cannot write " + o.timing_sweep);
-  f << "source,dataset,series,method,backend,hypotheses,matches,pairs,real_fraction,ms_mean,ms_median,ms_min\n";
+  f << "source,dataset,series,method,backend,hypotheses,matches,pairs,real_fraction,ms_mean,ms_median,ms_min,"
+       "vote_ms_mean,vote_device_ms_mean,refine_ms_mean\n";
   std::cout << "timing sweep on " << seq.name << " (" << pairs.size() << " pairs; per pair the fastest of "
             << o.sweep_repeats << " runs)\n";
   std::printf("%-10s %-22s %-6s %10s %8s %6s %6s %10s %10s\n", "series", "method", "backend", "hypotheses",
@@ -898,18 +918,28 @@ void timingSweep(const Sequence& seq, const Options& o, const EstimatorSettings&
       if (point.hypotheses > 0) s.hypotheses = point.hypotheses;
       std::unique_ptr<MethodRunner> runner = makeRunner(method, s, base);
       std::vector<double> ms;
-      double real = 0.0;
+      double real = 0.0, vote = 0.0, vote_device = 0.0, refine = 0.0;
       for (const FramePair& p0 : pairs) {
         if (p0.previous.size() < 8) continue;
         FramePair p = p0;
         real += resampleForTiming(point.matches, o.has_seed ? o.seed : est.seed, jitter_rad, &p);
         // The fastest of a few runs: the machine is shared, the minimum is the estimator's own cost.
-        double best = std::numeric_limits<double>::infinity();
-        for (int rep = 0; rep < o.sweep_repeats; ++rep) best = std::min(best, runner->run(p).estimate_ms);
-        ms.push_back(best);
+        MethodEstimate best;
+        best.estimate_ms = std::numeric_limits<double>::infinity();
+        for (int rep = 0; rep < o.sweep_repeats; ++rep) {
+          const MethodEstimate e = runner->run(p);
+          if (e.estimate_ms < best.estimate_ms) best = e;
+        }
+        ms.push_back(best.estimate_ms);
+        vote += best.vote_ms;
+        vote_device += best.vote_device_ms;
+        refine += best.refine_ms;
       }
       if (ms.empty()) continue;
       real /= ms.size();
+      auto meanOrEmpty = [&](double sum) {
+        return std::isfinite(sum) ? std::to_string(sum / ms.size()) : std::string();
+      };
       std::vector<double> sorted = ms;
       std::sort(sorted.begin(), sorted.end());
       double mean = 0;
@@ -918,7 +948,8 @@ void timingSweep(const Sequence& seq, const Options& o, const EstimatorSettings&
       const double median = sorted[sorted.size() / 2];
       f << "evaluate," << seq.name << ',' << point.series << ',' << method << ',' << runner->backend() << ','
         << point.hypotheses << ',' << point.matches << ',' << ms.size() << ',' << real << ',' << mean << ','
-        << median << ',' << sorted.front() << '\n';
+        << median << ',' << sorted.front() << ',' << meanOrEmpty(vote) << ',' << meanOrEmpty(vote_device) << ','
+        << meanOrEmpty(refine) << '\n';
       std::printf("%-10s %-22s %-6s %10d %8d %6zu %6.2f %10.3f %10.3f\n", point.series, method.c_str(),
                   runner->backend().c_str(), point.hypotheses, point.matches, ms.size(), real, mean, median);
       std::fflush(stdout);
