@@ -1,21 +1,30 @@
 #!/usr/bin/env bash
 # The one command a session with a GPU runs on the device machine (nvcc, CMake, Python; no ROS,
 # OpenCV or Eigen): builds cuda/ stand-alone, checks the CUDA voter against the CPU gold voter on the
-# carried bearing files (.device_carry/bearings/*.txt, see cuda/README.md) and on synthetic frames,
-# runs the sanitizers on a small case, and times both voters. Results go to ${OUT:-out/gpu}.
+# carried bearing files (.device_carry/bearings/*.txt, made by scripts/prepare_device_carry.sh) and
+# on synthetic frames, checks the whole estimator on both backends against the files' truth (with
+# the carried Eigen headers, .device_carry/eigen3), runs the sanitizers on a small case, and times
+# both voters. Results go to ${OUT:-out/gpu}.
 #
 #   scripts/gpu_bench.sh                 # everything
 #   QUICK=1 scripts/gpu_bench.sh         # smoke test: fewer frames and benchmark points
 #   CUDA_ARCHS=90 scripts/gpu_bench.sh   # architectures to build (default: the GPU's own)
 #   ALLOW_NO_GPU=1 scripts/gpu_bench.sh  # on a machine without GPU: CPU gold parts only, no failure
 #
+# Files go to ${GPU_BENCH_OUT:-out/gpu} (console.log, environment.txt, build.log, check_*, sanitizer_*,
+# bench_*). On the device machine, where $OUT is the folder that comes back (at most 8 files), the
+# whole folder is also packed into $OUT/gpu_bench.tar.gz with console.log beside it; unpack it here
+# with `mkdir -p out/gpu && tar xzf <files_at>/gpu_bench.tar.gz -C out/gpu` for `make bench`.
+#
 # Exit status: 0 when every check passed, 1 otherwise (the benchmarks still run).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
-out_dir=${OUT:-out/gpu}
+out_dir=${GPU_BENCH_OUT:-out/gpu}
 build_dir=${BUILD_DIR:-build/cuda-standalone}
 mkdir -p "${out_dir}"
+rm -f "${out_dir}"/*.log "${out_dir}"/*.csv "${out_dir}"/*.txt
+exec > >(tee "${out_dir}/console.log") 2>&1
 log() { echo "[gpu_bench] $*"; }
 status=0
 
@@ -36,14 +45,19 @@ if [[ -z ${archs} ]]; then
   [[ ${archs} =~ ^[0-9]+$ ]] || archs="75;80;86;89;90"
 fi
 log "building cuda/ stand-alone for CUDA architectures ${archs}"
+eigen_opt=()
+if [[ -f .device_carry/eigen3/Eigen/Core ]]; then
+  eigen_opt=("-DVISUAL_GYRO_EIGEN_INCLUDE_DIR=${PWD}/.device_carry/eigen3")
+fi
 if ! cmake -S cuda -B "${build_dir}" -DCMAKE_BUILD_TYPE=Release "-DVISUAL_GYRO_CUDA_ARCHITECTURES=${archs}" \
-    > "${out_dir}/build.log" 2>&1 ||
+    "${eigen_opt[@]}" > "${out_dir}/build.log" 2>&1 ||
    ! cmake --build "${build_dir}" -j"$(nproc)" >> "${out_dir}/build.log" 2>&1; then
   tail -40 "${out_dir}/build.log"
   log "BUILD FAILED (log: ${out_dir}/build.log)"
   exit 1
 fi
 check="${build_dir}/cuda_voter_check"
+estimator_check="${build_dir}/cuda_estimator_check"
 bench="${build_dir}/cuda_voter_bench"
 
 run() {  # run <log name> <command...>: tee the output, remember a failure
@@ -73,6 +87,14 @@ if (( ${#files[@]} )); then
 else
   log "no bearing files in .device_carry/bearings/: real-data check SKIPPED (see cuda/README.md to export them)"
 fi
+# 1b. The whole estimator (vote, paper) on both backends over the same files: the figures against
+#     the files' truth within 5 % (issue 5's accuracy goal), and the time split of an estimate.
+if (( ${#files[@]} )) && [[ -x ${estimator_check} ]]; then
+  run check_estimator "${estimator_check}" "${require_gpu[@]}" "${frames_opt[@]}" \
+    --csv "${out_dir}/check_estimator.csv" "${files[@]}"
+elif (( ${#files[@]} )); then
+  log "cuda_estimator_check not built (no Eigen headers: scripts/prepare_device_carry.sh carries them): estimator check SKIPPED"
+fi
 # 2. ... and on synthetic frames (pure rotation and forward driving, 30 % outliers).
 run check_synthetic "${check}" "${require_gpu[@]}" --synthetic "${synthetic}" --csv "${out_dir}/check_synthetic.csv"
 
@@ -95,6 +117,10 @@ done
 
 log "results in ${out_dir}:"
 ls -l "${out_dir}"
+if [[ -n ${OUT:-} && -d ${OUT} && $(cd "${OUT}" && pwd) != $(cd "${out_dir}" && pwd) ]]; then
+  tar czf "${OUT}/gpu_bench.tar.gz" -C "${out_dir}" .
+  log "packed into ${OUT}/gpu_bench.tar.gz"
+fi
 if [[ ${status} -ne 0 ]]; then
   log "SOME CHECKS FAILED"
 elif grep -q "GPU PART SKIPPED" "${out_dir}"/check_synthetic.log; then
@@ -102,4 +128,5 @@ elif grep -q "GPU PART SKIPPED" "${out_dir}"/check_synthetic.log; then
 else
   log "ALL CHECKS PASSED on ${gpu_name:-unknown GPU}"
 fi
+[[ -n ${OUT:-} && -d ${OUT} ]] && cp "${out_dir}/console.log" "${OUT}/console.log" 2>/dev/null
 exit "${status}"

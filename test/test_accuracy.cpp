@@ -3,7 +3,6 @@
 // tests skip with the reason when ../shared/data is absent; the rendered ones always run.
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -37,17 +36,10 @@ std::string jsonString(const std::string& line, const std::string& key) {
   return line.substr(at + needle.size(), end - at - needle.size());
 }
 
-// Runs a command, returns its stdout; fails the test on a non-zero exit.
+// Runs a command, returns its output; fails the test on a non-zero exit.
 std::string run(const std::string& command) {
-  std::string output;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) {
-    ADD_FAILURE() << "cannot run " << command;
-    return output;
-  }
-  std::array<char, 4096> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) output += buffer.data();
-  const int status = pclose(pipe);
+  int status = 0;
+  const std::string output = visual_gyro::test::runCommand(command, &status);
   EXPECT_EQ(status, 0) << command << "\n" << output;
   return output;
 }

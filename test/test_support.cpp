@@ -1,8 +1,12 @@
 #include "test_support.h"
 
+#include <array>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+
+#include <sys/wait.h>
 
 namespace visual_gyro {
 namespace test {
@@ -29,6 +33,20 @@ std::string makeTempDir(const std::string& tag) {
                     ("visual_gyro_" + tag + "_" + std::to_string(rd()));
   std::filesystem::create_directories(path);
   return path.string();
+}
+
+std::string runCommand(const std::string& command, int* status) {
+  std::string output;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) {
+    *status = -1;
+    return output;
+  }
+  std::array<char, 4096> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) output += buffer.data();
+  const int raw = pclose(pipe);
+  *status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return output;
 }
 
 }  // namespace test

@@ -12,6 +12,9 @@ std::string sharedDataDir();
 std::string sharedSequence(const std::string& name, std::string* why);
 /// A fresh temporary folder for one test.
 std::string makeTempDir(const std::string& tag);
+/// Runs a shell command (stderr merged into stdout) and returns its output; *status receives the
+/// exit status (-1 when it could not be started).
+std::string runCommand(const std::string& command, int* status);
 
 }  // namespace test
 }  // namespace visual_gyro

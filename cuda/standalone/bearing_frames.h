@@ -22,6 +22,10 @@ struct BearingFrame {
   int64_t index = 0;  ///< frame number k in its sequence
   std::vector<hyp::Vec3f> prev;
   std::vector<hyp::Vec3f> cur;
+  double dt = 0.0;         ///< time between the two images [s]; 0 when unknown (v1 files)
+  bool has_truth = false;  ///< whether `truth` holds the true rotation
+  /// True rotation, row-major, b_prev ~ R b_cur (R = R_{k-1}^T R_k); identity without truth.
+  double truth[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
 };
 
 /// Settings of a synthetic frame: a random rotation, points at random depths, optional forward
@@ -89,6 +93,9 @@ inline BearingFrame makeSyntheticFrame(const SyntheticOptions& options, uint64_t
   };
   BearingFrame frame;
   frame.index = index;
+  frame.dt = 0.1;
+  frame.has_truth = true;
+  std::copy(R, R + 9, frame.truth);
   frame.prev.reserve(options.matches);
   frame.cur.reserve(options.matches);
   for (uint32_t i = 0; i < options.matches; ++i) {
@@ -113,6 +120,9 @@ inline BearingFrame makeSyntheticFrame(const SyntheticOptions& options, uint64_t
 inline BearingFrame resampleFrame(const BearingFrame& frame, uint32_t count, uint64_t seed) {
   BearingFrame out;
   out.index = frame.index;
+  out.dt = frame.dt;
+  out.has_truth = frame.has_truth;
+  std::copy(frame.truth, frame.truth + 9, out.truth);
   const size_t n = frame.prev.size();
   if (n == 0) return out;
   std::mt19937_64 rng(seed);

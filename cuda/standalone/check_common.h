@@ -69,6 +69,29 @@ inline double msSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
+/// Walks the command line: next() yields each argument, value() the one after it (the option's
+/// value; throws std::invalid_argument naming the option when there is none).
+class ArgCursor {
+ public:
+  ArgCursor(int argc, char** argv) : argc_(argc), argv_(argv) {}
+  bool next(std::string* arg) {
+    if (++i_ >= argc_) return false;
+    current_ = argv_[i_];
+    *arg = current_;
+    return true;
+  }
+  const char* value() {
+    if (i_ + 1 >= argc_) throw std::invalid_argument(current_ + " needs a value");
+    return argv_[++i_];
+  }
+
+ private:
+  int argc_;
+  char** argv_;
+  int i_ = 0;
+  std::string current_;
+};
+
 /// Parses a non-negative integer option value; throws std::invalid_argument naming the option.
 inline unsigned long long parseCount(const std::string& option, const char* text) {
   char* end = nullptr;

@@ -64,12 +64,10 @@ int main(int argc, char** argv) {
   CompareOptions compare;
   std::string csv_path, write_path;
   try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string arg = argv[i];
-      auto value = [&]() -> const char* {
-        if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
-        return argv[++i];
-      };
+    ArgCursor args(argc, argv);
+    std::string arg;
+    while (args.next(&arg)) {
+      auto value = [&args] { return args.value(); };
       if (arg == "-h" || arg == "--help") {
         usage();
         return 0;

@@ -28,6 +28,7 @@
 
 #include "baselines.h"
 #include "visual_gyro/sequence.h"
+#include "standalone/bearing_file.h"
 #include "visual_gyro/visual_gyro.h"
 
 namespace visual_gyro {
@@ -539,18 +540,29 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
 }
 
 void exportBearings(const std::vector<FramePair>& pairs, const std::string& path) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (!f) throw DataError("cannot write " + path);
-  std::fprintf(f, "# visual_gyro bearings v1\n");
-  for (const FramePair& p : pairs) {
-    std::fprintf(f, "frame %zu %zu\n", p.index, p.previous.size());
+  std::vector<bearings::BearingFrame> frames(pairs.size());
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const FramePair& p = pairs[k];
+    bearings::BearingFrame& f = frames[k];
+    f.index = static_cast<int64_t>(p.index);
+    f.dt = p.dt;
+    f.has_truth = p.has_truth;
+    if (p.has_truth)
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) f.truth[3 * r + c] = p.true_rotation(r, c);
+    auto toFloat = [](const Eigen::Vector3d& v) {
+      return hyp::make3(static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z()));
+    };
     for (size_t i = 0; i < p.previous.size(); ++i) {
-      const Eigen::Vector3d& a = p.previous[i];
-      const Eigen::Vector3d& b = p.current[i];
-      std::fprintf(f, "%.9g %.9g %.9g %.9g %.9g %.9g\n", a.x(), a.y(), a.z(), b.x(), b.y(), b.z());
+      f.prev.push_back(toFloat(p.previous[i]));
+      f.cur.push_back(toFloat(p.current[i]));
     }
   }
-  if (std::fclose(f) != 0) throw DataError("cannot write " + path);
+  try {
+    bearings::writeBearingFile(path, frames);
+  } catch (const std::runtime_error& e) {
+    throw DataError(e.what());
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
