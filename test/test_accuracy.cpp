@@ -5,11 +5,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "test_support.h"
 #include "visual_gyro/rotation_estimator.h"
@@ -185,4 +187,53 @@ TEST_F(Rendered, HandheldRotationBothMethods) {
   EXPECT_EQ(f.at("vote.invalid"), 0);
   EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.1);
   EXPECT_LE(f.at("paper.yaw_rmse_deg"), 0.4);
+}
+
+// `make bench`'s timing series come from `evaluate --timing-sweep`: both series, baselines once on
+// the hypotheses axis, topped-up pairs flagged, and vote's time split into voter and host parts.
+TEST_F(Rendered, TimingSweepWritesBothSeriesWithTheSplit) {
+  const std::string csv = root_ + "/sweep.csv";
+  run(std::string(VISUAL_GYRO_EVALUATE) + " " + root_ + "/drive --method vote,essential5 --backend cpu --quiet " +
+      "--frames 2 --sweep-hypotheses 100,1000 --sweep-matches 250,4000 --sweep-repeats 1 --timing-sweep " + csv);
+  std::ifstream in(csv);
+  std::string header;
+  ASSERT_TRUE(std::getline(in, header)) << "no CSV at " << csv;
+  EXPECT_EQ(header,
+            "source,dataset,series,method,backend,hypotheses,matches,pairs,real_fraction,ms_mean,ms_median,ms_min,"
+            "vote_ms_mean,vote_device_ms_mean,refine_ms_mean");
+  std::map<std::string, int> rows;  // "<series>/<method>" -> count
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');) f.push_back(cell);
+    if (line.back() == ',') f.push_back("");
+    ASSERT_EQ(f.size(), 15u) << line;
+    const std::string series = f[2], method = f[3];
+    const int hypotheses = std::stoi(f[5]), matches = std::stoi(f[6]);
+    const double real = std::stod(f[8]), ms = std::stod(f[9]);
+    ++rows[series + "/" + method];
+    EXPECT_EQ(f[4], "cpu") << line;
+    EXPECT_EQ(std::stoi(f[7]), 2) << line;
+    EXPECT_GT(ms, 0.0) << line;
+    EXPECT_EQ(hypotheses == 0, method == "essential5") << line;  // baselines have no hypothesis count
+    if (series == "hypotheses") EXPECT_EQ(matches, 2000) << line;
+    if (series == "matches" && method == "vote") EXPECT_EQ(hypotheses, 10000) << line;
+    // The rendered drive has about 1 000 matches a pair: 250 is a real subset, 4 000 is topped up.
+    if (matches == 250) EXPECT_EQ(real, 1.0) << line;
+    if (matches == 4000) EXPECT_LT(real, 0.5) << line;
+    if (method == "vote") {
+      const double vote = std::stod(f[12]), refine = std::stod(f[14]);
+      EXPECT_TRUE(f[13].empty()) << "no GPU kernels on the CPU: " << line;
+      EXPECT_GT(vote, 0.0) << line;
+      EXPECT_GE(refine, 0.0) << line;
+      EXPECT_LE(vote + refine, ms * 1.001 + 1e-3) << line;
+    } else {
+      EXPECT_TRUE(f[12].empty() && f[14].empty()) << line;
+    }
+  }
+  EXPECT_EQ(rows["hypotheses/vote"], 2);
+  EXPECT_EQ(rows["hypotheses/essential5"], 1);
+  EXPECT_EQ(rows["matches/vote"], 2);
+  EXPECT_EQ(rows["matches/essential5"], 2);
 }
