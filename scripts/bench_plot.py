@@ -77,6 +77,15 @@ def runs_of(rows):
     return runs
 
 
+def method_table(runs, methods, cell):
+    """Markdown rows: one per run, one column per method, cell(row) where the method ran, else '-'."""
+    out = ["| sequence | " + " | ".join(methods) + " |", "|---" * (len(methods) + 1) + "|"]
+    for (_, label), by_method in runs.items():
+        cells = [cell(by_method[m]) if m in by_method else "-" for m in methods]
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    return out
+
+
 def write_table(rows, methods, path, machine, sweep_rows):
     runs = runs_of(rows)
     out = []
@@ -90,36 +99,18 @@ def write_table(rows, methods, path, machine, sweep_rows):
             out.append(f"{label}: the reference is the raw gyro as the loader integrates it (bias not removed; "
                        f"it reads {float(gyro):.2f} deg/s on average), so its rotation errors mostly measure that "
                        "bias; the mean estimated rate is the telling figure there.\n")
+    def rot_cell(r):
+        cell = f"{fmt(r['rot_rmse_deg'])} / {fmt(r['rot_max_deg'])}"
+        return cell + (f" ({r['invalid']} inv.)" if r.get("invalid") else "")
+
+    def yaw_cell(r):
+        cell = f"{fmt(r['yaw_rmse_deg'])}; {fmt(r['mean_rate_dps'])}"
+        return cell + (f" ({fmt(r['rate_rmse_dps'])})" if r.get("rate_rmse_dps") is not None else "")
+
     out.append("## Rotation error RMSE / max per frame pair [deg]\n")
-    out.append("| sequence | " + " | ".join(methods) + " |")
-    out.append("|---" * (len(methods) + 1) + "|")
-    for (group, label), by_method in runs.items():
-        cells = []
-        for m in methods:
-            r = by_method.get(m)
-            if r is None:
-                cells.append("-")
-                continue
-            cell = f"{fmt(r['rot_rmse_deg'])} / {fmt(r['rot_max_deg'])}"
-            if r.get("invalid"):
-                cell += f" ({r['invalid']} inv.)"
-            cells.append(cell)
-        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    out.extend(method_table(runs, methods, rot_cell))
     out.append("\n## Yaw error RMSE [deg]; mean estimated rate [deg/s] (rate RMSE vs gyro where one exists)\n")
-    out.append("| sequence | " + " | ".join(methods) + " |")
-    out.append("|---" * (len(methods) + 1) + "|")
-    for (group, label), by_method in runs.items():
-        cells = []
-        for m in methods:
-            r = by_method.get(m)
-            if r is None:
-                cells.append("-")
-                continue
-            cell = f"{fmt(r['yaw_rmse_deg'])}; {fmt(r['mean_rate_dps'])}"
-            if r.get("rate_rmse_dps") is not None:
-                cell += f" ({fmt(r['rate_rmse_dps'])})"
-            cells.append(cell)
-        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    out.extend(method_table(runs, methods, yaw_cell))
     out.append("\n## Estimation time per frame pair [ms] (front end shared: detect + describe + match)\n")
     out.append("| sequence | matches | front end | " + " | ".join(methods) + " |")
     out.append("|---" * (len(methods) + 3) + "|")

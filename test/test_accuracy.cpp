@@ -20,23 +20,8 @@ namespace {
 
 using Figures = std::map<std::string, double>;  // "<method>.<key>" -> value
 
-double jsonNumber(const std::string& line, const std::string& key) {
-  const std::string needle = "\"" + key + "\": ";
-  const size_t at = line.find(needle);
-  if (at == std::string::npos) return std::nan("");
-  const char* value = line.c_str() + at + needle.size();
-  char* end = nullptr;
-  const double number = std::strtod(value, &end);
-  return end == value ? std::nan("") : number;  // e.g. null: no such figure for this sequence
-}
-
-std::string jsonString(const std::string& line, const std::string& key) {
-  const std::string needle = "\"" + key + "\": \"";
-  const size_t at = line.find(needle);
-  if (at == std::string::npos) return "";
-  const size_t end = line.find('"', at + needle.size());
-  return line.substr(at + needle.size(), end - at - needle.size());
-}
+using visual_gyro::test::jsonNumber;
+using visual_gyro::test::jsonString;
 
 // Runs a command, returns its output; fails the test on a non-zero exit.
 std::string run(const std::string& command) {

@@ -127,14 +127,13 @@ TEST(EstimatorComparison, PassesIdenticalRunsAndCatchesDifferentOnes) {
   EXPECT_FALSE(bearings::compareEstimatorRuns(a, shorter).passed());
 }
 
+// evaluate's figure `key` for `method` (its JSON line in `text`); NaN when absent.
 double jsonNumber(const std::string& text, const std::string& method, const std::string& key) {
   std::istringstream lines(text);
   std::string line;
-  while (std::getline(lines, line)) {
-    if (line.find("\"method\": \"" + method + "\"") == std::string::npos) continue;
-    const size_t at = line.find("\"" + key + "\": ");
-    if (at != std::string::npos) return std::strtod(line.c_str() + at + key.size() + 4, nullptr);
-  }
+  while (std::getline(lines, line))
+    if (!line.empty() && line[0] == '{' && test::jsonString(line, "method") == method)
+      return test::jsonNumber(line, key);
   return std::nan("");
 }
 

@@ -18,11 +18,7 @@ constexpr double kDeg = M_PI / 180.0;
 vg::RenderSettings smallScene() {
   vg::RenderSettings s;
   s.preset = "handheld";
-  s.width = 480;
-  s.height = 360;
-  s.fx = s.fy = 380.0;
-  s.cx = 239.5;
-  s.cy = 179.5;
+  s.setCentredCamera(480, 360, 380.0);
   return s;
 }
 

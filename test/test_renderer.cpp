@@ -81,11 +81,7 @@ TEST(Renderer, RotatedViewsAreRelatedByTheInfiniteHomography) {
 TEST(Renderer, SameSeedSameImagesOtherSeedOtherTexture) {
   RenderSettings settings;
   settings.preset = "handheld";
-  settings.width = 160;
-  settings.height = 120;
-  settings.fx = settings.fy = 125.0;
-  settings.cx = 79.5;
-  settings.cy = 59.5;
+  settings.setCentredCamera(160, 120, 125.0);
   const Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   const Eigen::Vector3d p = Eigen::Vector3d::Zero();
   const cv::Mat a = renderView(settings, R, p);
@@ -100,11 +96,7 @@ TEST(Renderer, KittiLayoutLoadsBack) {
   RenderSettings settings;
   settings.preset = "drive";
   settings.frames = 6;
-  settings.width = 320;
-  settings.height = 240;
-  settings.fx = settings.fy = 250.0;
-  settings.cx = 159.5;
-  settings.cy = 119.5;
+  settings.setCentredCamera(320, 240, 250.0);
   const RenderedSequence rendered = renderSequence(settings);
   ASSERT_EQ(rendered.images.size(), 6u);
   const std::string dir = test::makeTempDir("render_kitti") + "/synthetic_drive";
@@ -188,11 +180,7 @@ TEST(Renderer, PresetMotionMatchesItsDescription) {
     settings.preset = c.preset;
     settings.frames = c.frames;
     settings.rate_hz = c.rate_hz;
-    settings.width = 32;  // motion only: tiny images
-    settings.height = 24;
-    settings.fx = settings.fy = 25.0;
-    settings.cx = 15.5;
-    settings.cy = 11.5;
+    settings.setCentredCamera(32, 24, 25.0);  // motion only: tiny images
     const RenderedSequence seq = renderSequence(settings);
     ASSERT_EQ(seq.orientations.size(), static_cast<size_t>(c.frames));
     EXPECT_LT((seq.orientations[0] - Eigen::Matrix3d::Identity()).norm(), 1e-12) << "world = first camera";

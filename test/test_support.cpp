@@ -1,6 +1,7 @@
 #include "test_support.h"
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -47,6 +48,24 @@ std::string runCommand(const std::string& command, int* status) {
   const int raw = pclose(pipe);
   *status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
   return output;
+}
+
+double jsonNumber(const std::string& line, const std::string& key) {
+  const std::string needle = "\"" + key + "\": ";
+  const size_t at = line.find(needle);
+  if (at == std::string::npos) return std::nan("");
+  const char* value = line.c_str() + at + needle.size();
+  char* end = nullptr;
+  const double number = std::strtod(value, &end);
+  return end == value ? std::nan("") : number;  // e.g. null: no such figure for this sequence
+}
+
+std::string jsonString(const std::string& line, const std::string& key) {
+  const std::string needle = "\"" + key + "\": \"";
+  const size_t at = line.find(needle);
+  if (at == std::string::npos) return "";
+  const size_t end = line.find('"', at + needle.size());
+  return line.substr(at + needle.size(), end - at - needle.size());
 }
 
 }  // namespace test

@@ -15,6 +15,10 @@ std::string makeTempDir(const std::string& tag);
 /// Runs a shell command (stderr merged into stdout) and returns its output; *status receives the
 /// exit status (-1 when it could not be started).
 std::string runCommand(const std::string& command, int* status);
+/// The number under "key" in one of evaluate's JSON lines; NaN when absent or null.
+double jsonNumber(const std::string& line, const std::string& key);
+/// The string under "key" in one of evaluate's JSON lines; "" when absent.
+std::string jsonString(const std::string& line, const std::string& key);
 
 }  // namespace test
 }  // namespace visual_gyro

@@ -21,6 +21,16 @@ struct RenderSettings {
   double rate_hz = 10.0;       ///< frame rate: stamps are k / rate_hz [s]
   double noise_sigma = 2.0;    ///< Gaussian pixel noise (grey levels)
   uint64_t seed = 7;           ///< texture and noise seed
+
+  /// Sets the image size [px] and a pinhole camera with fx = fy = `focal` [px] whose principal
+  /// point is the image centre ((width - 1) / 2, (height - 1) / 2).
+  void setCentredCamera(int image_width, int image_height, double focal) {
+    width = image_width;
+    height = image_height;
+    fx = fy = focal;
+    cx = (image_width - 1) / 2.0;
+    cy = (image_height - 1) / 2.0;
+  }
 };
 
 /// Rendered sequence in memory.

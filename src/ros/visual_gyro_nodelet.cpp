@@ -241,9 +241,7 @@ void VisualGyroNodelet::cameraCb(const sensor_msgs::ImageConstPtr& image,
   CameraModel camera;
   std::string why;
   if (!conv::cameraModelFromInfo(*info, &camera, &why)) {
-    NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", why.c_str());
-    camera_error_ = why;
-    skip("camera_info");
+    skipForCamera(why, "camera_info");
     return;
   }
   if (camera.width() != static_cast<int>(image->width) || camera.height() != static_cast<int>(image->height)) {
@@ -263,12 +261,16 @@ void VisualGyroNodelet::imageCb(const sensor_msgs::ImageConstPtr& image) {
   CameraModel camera;
   std::string why;
   if (!cameraFromParameters(static_cast<int>(image->width), static_cast<int>(image->height), &camera, &why)) {
-    NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", why.c_str());
-    camera_error_ = why;
-    skip("camera_parameters");
+    skipForCamera(why, "camera_parameters");
     return;
   }
   processImage(*image, camera, start);
+}
+
+void VisualGyroNodelet::skipForCamera(const std::string& why, const std::string& reason) {
+  NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", why.c_str());
+  camera_error_ = why;
+  skip(reason);
 }
 
 void VisualGyroNodelet::skip(const std::string& reason) {

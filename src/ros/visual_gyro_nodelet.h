@@ -64,6 +64,9 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   void resetState();
   /// Counts a skipped frame under `reason`.
   void skip(const std::string& reason);
+  /// Skips a frame whose camera model is unusable (`why`): a throttled error, kept for the
+  /// diagnostics, and counted under `reason`.
+  void skipForCamera(const std::string& why, const std::string& reason);
   /// Rotation from the camera optical frame into ~output_frame (identity when unset). False when
   /// the transform is not available yet.
   bool outputRotation(const std::string& camera_frame, Eigen::Matrix3d* rotation);

@@ -104,8 +104,7 @@ int main(int argc, char** argv) {
     return usageError("unknown preset '" + settings.preset + "'");
   if (out.empty()) return usageError("--out is required");
   if (!rate_given) settings.rate_hz = settings.preset == "handheld" ? 30.0 : 10.0;
-  settings.cx = (settings.width - 1) / 2.0;
-  settings.cy = (settings.height - 1) / 2.0;
+  settings.setCentredCamera(settings.width, settings.height, settings.fx);
 
   visual_gyro::RenderedSequence sequence;
   const auto start = std::chrono::steady_clock::now();

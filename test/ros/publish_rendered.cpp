@@ -26,11 +26,7 @@ int main(int argc, char** argv) {
 
   visual_gyro::RenderSettings settings;
   settings.preset = "handheld";
-  settings.width = 320;
-  settings.height = 240;
-  settings.fx = settings.fy = 250.0;
-  settings.cx = 159.5;
-  settings.cy = 119.5;
+  settings.setCentredCamera(320, 240, 250.0);
   settings.noise_sigma = 1.0;
   std::vector<sensor_msgs::Image> images;
   for (int k = 0; k < period; ++k) {

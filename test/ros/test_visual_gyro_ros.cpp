@@ -66,11 +66,7 @@ bool waitFor(const std::function<bool()>& pred, double timeout) {
 visual_gyro::RenderSettings renderSettings() {
   visual_gyro::RenderSettings s;
   s.preset = "handheld";  // a room around the camera: rotation-only views are well textured
-  s.width = 320;
-  s.height = 240;
-  s.fx = s.fy = 250.0;
-  s.cx = 159.5;
-  s.cy = 119.5;
+  s.setCentredCamera(320, 240, 250.0);
   s.noise_sigma = 1.0;
   return s;
 }
