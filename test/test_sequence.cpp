@@ -106,6 +106,7 @@ TEST(SharedSequence, EurocStatic) {
   const Sequence seq = loadSequence(path);
   EXPECT_EQ(seq.name, "euroc_v101_static");
   EXPECT_EQ(seq.layout, "euroc");
+  EXPECT_EQ(seq.truth, "gyro");
   ASSERT_EQ(seq.image_paths.size(), 95u);
   ASSERT_EQ(seq.stamps.size(), 95u);
   EXPECT_TRUE(fs::is_regular_file(seq.image_paths.front())) << seq.image_paths.front();
@@ -234,6 +235,100 @@ TEST(Sequence, EurocGyroIntegration) {
   EXPECT_FALSE(cut.trueRotation(2, &R));
   EXPECT_FALSE(cut.trueAngularVelocity(2, &omega));
   fs::remove_all(root.parent_path());
+}
+
+/// A made-up EuRoC folder with ground-truth poses (state_groundtruth_estimate0): the camera
+/// rotation between frames is R_BS^T (R_k-1^T R_k) R_BS with R_k slerped at the image stamps,
+/// the poses are preferred to the gyro, and frames outside the poses' span have no truth.
+TEST(Sequence, EurocGroundTruthPoses) {
+  const fs::path root = fs::path(test::makeTempDir("seq_euroc_poses")) / "posed";
+  std::string csv = "#timestamp [ns],filename\n";
+  for (int k = 0; k < 4; ++k) {  // 100.0025, 100.0525, 100.1025, 100.1525 s
+    const long long ns = 100002500000LL + k * 50000000LL;
+    csv += std::to_string(ns) + "," + std::to_string(ns) + ".png\n";
+    writeImage(root / "cam0" / "data" / (std::to_string(ns) + ".png"));
+  }
+  writeFile(root / "cam0" / "data.csv", csv);
+  writeFile(root / "cam0" / "sensor.yaml",
+            "T_BS:\n  cols: 4\n  rows: 4\n  data: [0.0, 0.0, 1.0, 0.1,\n         -1.0, 0.0, 0.0, 0.0,\n"
+            "         0.0, -1.0, 0.0, 0.0,\n         0.0, 0.0, 0.0, 1.0]\nresolution: [16, 12]\n"
+            "intrinsics: [10.0, 11.0, 7.5, 5.5]\ndistortion_model: none\n");
+  // A gyro that says something else: the poses must win.
+  writeFile(root / "imu0" / "data.csv", "100000000000,1,1,1\n100200000000,1,1,1\n");
+  // Body orientation: yaw about the world z axis at 0.4 rad/s from t = 100 s; position moves
+  // along world x at 1 m/s. 200 Hz samples from 100.0 s to 100.12 s (the last image is outside),
+  // in EuRoC's full 17-column layout for the first half and its 8-column excerpt for the rest.
+  std::string poses = "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], "
+                      "q_RS_z [], v..., b_w..., b_a...\n";
+  for (int i = 0; i <= 24; ++i) {
+    const double t = i * 0.005;
+    const long long ns = 100000000000LL + i * 5000000LL;
+    char line[512];
+    const double half = 0.5 * 0.4 * t;
+    if (i < 12) {
+      std::snprintf(line, sizeof(line), "%lld,%.17g,0,0,%.17g,0,0,%.17g,1,0,0,0,0,0,0,0,0\n", ns, t, std::cos(half),
+                    std::sin(half));
+    } else {
+      std::snprintf(line, sizeof(line), "%lld,%.17g,0,0,%.17g,0,0,%.17g\n", ns, t, std::cos(half), std::sin(half));
+    }
+    poses += line;
+  }
+  writeFile(root / "state_groundtruth_estimate0" / "data.csv", poses);
+
+  const Sequence seq = loadSequence(root.string());
+  EXPECT_EQ(seq.truth, "poses");
+  ASSERT_TRUE(seq.hasPoses());
+  ASSERT_EQ(seq.orientations.size(), 4u);
+  EXPECT_LT((seq.orientations[0] - Eigen::Matrix3d::Identity()).norm(), 1e-12) << "relative to the first image";
+  Eigen::Matrix3d R_bs;
+  R_bs << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  // Frame 1 -> 2: a body yaw of 0.4 * 0.05 rad about world (= body) z; in the camera frame
+  // R_BS^T Rz R_BS, a rotation about camera -y (body z = camera -y): a left turn, negative yaw.
+  Eigen::Matrix3d R;
+  ASSERT_TRUE(seq.trueRotation(2, &R));
+  const Eigen::Matrix3d expected =
+      R_bs.transpose() * Eigen::AngleAxisd(0.4 * 0.05, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R_bs;
+  EXPECT_LT((R - expected).norm(), 1e-9);
+  EXPECT_NEAR(yawOf(R), -0.02, 1e-9);
+  Eigen::Vector3d omega;
+  ASSERT_TRUE(seq.trueAngularVelocity(2, &omega));
+  EXPECT_LT((omega - Eigen::Vector3d(0, -0.4, 0)).norm(), 1e-6) << omega.transpose();
+  // Camera positions (camera -> first camera frame): the body moves 5 cm along world x between
+  // frames, with the 10 cm lever arm of T_BS turning with the yaw.
+  EXPECT_GT((seq.positions[1] - seq.positions[0]).norm(), 0.04);
+  EXPECT_LT((seq.positions[1] - seq.positions[0]).norm(), 0.06);
+  // The last image (100.1525 s) is after the last pose (100.12 s): no truth for pair 3.
+  EXPECT_FALSE(seq.trueRotation(3, &R));
+  EXPECT_FALSE(seq.trueAngularVelocity(3, &omega));
+
+  // A malformed pose line names the file and the line.
+  writeFile(root / "state_groundtruth_estimate0" / "data.csv", poses + "100200000000,1,2,3\n");
+  expectLoadError(root.string(), "state_groundtruth_estimate0/data.csv:27");
+  writeFile(root / "state_groundtruth_estimate0" / "data.csv", "100000000000,0,0,0,2,0,0,0\n100100000000,0,0,0,1,0,0,0\n");
+  expectLoadError(root.string(), "quaternion not of unit norm");
+  fs::remove_all(root.parent_path());
+}
+
+TEST(SharedSequence, EurocShakeHasPoseTruth) {
+  std::string why;
+  const std::string path = test::sharedSequence("euroc_mh01_shake", &why);
+  if (path.empty()) GTEST_SKIP() << why;
+  const Sequence seq = loadSequence(path);
+  EXPECT_EQ(seq.truth, "poses");
+  ASSERT_EQ(seq.image_paths.size(), 100u);
+  EXPECT_FALSE(seq.hasGyro());
+  // The data README: 1.20 deg of rotation per frame on average, up to 2.4 deg.
+  double sum = 0, max = 0;
+  for (size_t k = 1; k < seq.image_paths.size(); ++k) {
+    Eigen::Matrix3d R;
+    ASSERT_TRUE(seq.trueRotation(k, &R)) << "frame " << k;
+    const double angle = Eigen::AngleAxisd(R).angle() / kDeg;
+    sum += angle;
+    max = std::max(max, angle);
+  }
+  EXPECT_NEAR(sum / 99.0, 1.20, 0.02);
+  EXPECT_GT(max, 2.0);
+  EXPECT_LT(max, 3.0);
 }
 
 TEST(Sequence, KittiLayoutDetails) {

@@ -12,7 +12,9 @@ namespace visual_gyro {
 /// What to render.
 struct RenderSettings {
   /// "drive" (car-like forward motion with left and right turns), "handheld" (rotation only with
-  /// small jitter), "forward" (straight forward drive, no rotation to speak of).
+  /// small jitter), "forward" (straight forward drive, no rotation to speak of), "drone_near" (a
+  /// hand-shaken camera 1-2 m from textured structure: up to ~3 deg and 2-5 cm per frame at
+  /// 20 Hz, strong parallax; render it at rate_hz = 20).
   std::string preset = "drive";
   int frames = 60;
   int width = 640;

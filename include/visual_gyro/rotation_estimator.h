@@ -8,8 +8,10 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 
 #include "visual_gyro/hypothesis_voter.h"
 #include <memory>
@@ -53,6 +55,10 @@ struct EstimatorSettings {
   double min_covariance_rad2 = 1e-8;  ///< floor of each rotation covariance diagonal entry
 };
 
+/// Standard deviation per axis [rad] added to every vote-method rotation covariance: the errors no
+/// residual shows (calibration, time stamps, the ground truth it was calibrated against), 0.03 deg.
+constexpr double kRotationCovarianceFloor = 0.03 * M_PI / 180.0;
+
 /// Checks settings; returns "" when usable, else a message naming the bad setting.
 std::string validateSettings(const EstimatorSettings& settings);
 
@@ -71,6 +77,29 @@ struct StageTimes {
   /// Part of estimate outside the voter, on the host: reading the winner, verification and
   /// refinement (vote method), angles and covariance.
   double refine = 0.0;
+};
+
+/// How the vote method reached its result, for per-frame diagnostics (evaluate --csv, the
+/// RotationEstimate message). Counts refer to the candidate that won verification.
+struct VoteDiagnostics {
+  bool prior_used = false;  ///< the narrow vote window was centred on a prior
+  bool wide_vote = false;   ///< the wide (prior-free) vote ran as well
+  /// Where the winning candidate came from: "narrow" or "wide" (a vote cell), "prior" (the prior
+  /// itself) or "identity"; "" when none was verified.
+  std::string winner_source;
+  int candidates_verified = 0;  ///< candidate rotations checked against all matches
+  /// The rotation/translation valley of a close scene was searched (general motion with a
+  /// lateral translation), and its search replaced the winner.
+  bool valley_searched = false;
+  bool valley_moved = false;
+  int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
+  int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation
+  /// Refined inliers of the best losing candidate; -1 when only the winner was refined.
+  int runner_up_inliers = -1;
+  /// Angle between the result and the prior [rad]; NaN without a prior.
+  double prior_offset = std::numeric_limits<double>::quiet_NaN();
+  /// Robust scale of the refined inliers' residuals [rad] (the sigma of the covariance).
+  double residual_sigma = 0.0;
 };
 
 /// Result of one rotation estimate.
@@ -92,6 +121,7 @@ struct RotationResult {
   int inliers = 0;               ///< matches consistent with the result (vote method; paper: 0)
   bool pure_rotation = false;    ///< vote method: the matches are explained by rotation alone
   std::string backend;           ///< backend that voted: "cpu" or "cuda"
+  VoteDiagnostics diagnostics;   ///< vote method: how the result was reached
   StageTimes times;              ///< estimate (and, from VisualGyro, front-end) times
 };
 

@@ -336,7 +336,7 @@ double wave(double amplitude, double frequency_hz, double phase, double t) {
 class Trajectory {
  public:
   Trajectory(const std::string& preset, double duration) : preset_(preset) {
-    if (preset_ == "handheld") return;
+    if (preset_ == "handheld" || preset_ == "drone_near") return;
     // Drive: integrate the heading into positions once (midpoint rule, 2 ms steps), covering a
     // stretch before the first and after the last frame so the scene extends past them.
     t_min_ = -3.0;
@@ -378,6 +378,16 @@ class Trajectory {
       *orientation = yawPitchRoll(wave(deg(16.0), 0.30, 0.4, t), wave(deg(8.0), 0.45, 1.3, t),
                                   wave(deg(5.0), 0.60, 2.1, t));
       *position = Eigen::Vector3d(wave(0.003, 1.3, 0.2, t), wave(0.002, 1.7, 0.9, t), wave(0.003, 1.1, 1.7, t));
+      return;
+    }
+    if (preset_ == "drone_near") {
+      // A drone shaken by hand in front of a pallet: peak rates about 45, 38 and 28 deg/s (up to
+      // ~3 deg per frame at 20 Hz together) and translation of decimetres at up to ~0.9 m/s
+      // (2-5 cm per frame at 20 Hz), 1-2 m from the structure: strong parallax, the rotation /
+      // translation ambiguity of a close scene.
+      *orientation = yawPitchRoll(wave(deg(8.0), 0.9, 0.4, t), wave(deg(5.0), 1.2, 1.3, t),
+                                  wave(deg(3.0), 1.5, 2.1, t));
+      *position = Eigen::Vector3d(wave(0.12, 0.8, 0.3, t), wave(0.08, 1.1, 1.0, t), wave(0.06, 0.7, 1.9, t));
       return;
     }
     // Car: heading plus small pitch and roll oscillations (~0.1 deg/frame at 10 Hz for drive).
@@ -558,10 +568,33 @@ void buildRoomScene(const RenderSettings& settings, Scene* scene) {
   }
 }
 
+/// Structure 1-2 m in front of the camera: a pallet-like box stack, a back wall, the floor and
+/// side walls, all textured; nothing far away, so every match carries parallax.
+void buildNearScene(const RenderSettings& settings, Scene* scene) {
+  SceneBuilder builder(scene, settings.seed);
+  Rng rng(mixSeed(settings.seed, 0x4E454152ull));
+  const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY(), uz = Eigen::Vector3d::UnitZ();
+  const TextureStyle wall;
+  // Floor 1.1 m below the camera, back wall 2.4 m ahead, side walls 1.8 m to each side.
+  const double x0 = -1.8, x1 = 1.8, y0 = -1.5, y1 = 1.1, z0 = -1.0, z1 = 2.4;
+  builder.addPlane({x0, y1, z0}, ux, uz, x1 - x0, z1 - z0, 1.4, wall);  // floor
+  builder.addPlane({x0, y0, z1}, ux, uy, x1 - x0, y1 - y0, 2.4, wall);  // back wall
+  builder.addPlane({x0, y0, z0}, uz, uy, z1 - z0, y1 - y0, 1.9, wall);  // left
+  builder.addPlane({x1, y0, z0}, uz, uy, z1 - z0, y1 - y0, 1.9, wall);  // right
+  // The pallet: boxes 1.1-1.6 m ahead, standing on the floor.
+  TextureStyle object_style;
+  object_style.max_shape = 40.0;
+  for (int i = 0; i < 4; ++i) {
+    const double cx = -0.9 + 0.6 * i + rng.uniform(-0.1, 0.1), cz = rng.uniform(1.1, 1.6);
+    builder.addBox(cx, cz, y1, rng.uniform(0.35, 0.55), rng.uniform(0.3, 0.5), rng.uniform(0.6, 1.6),
+                   rng.uniform(-0.3, 0.3), cz, object_style);
+  }
+}
+
 std::string sceneKey(const RenderSettings& s) {
   std::ostringstream key;
   key << s.preset << '/' << s.seed;
-  if (s.preset != "handheld") key << '/' << s.frames << '/' << s.rate_hz;
+  if (s.preset != "handheld" && s.preset != "drone_near") key << '/' << s.frames << '/' << s.rate_hz;
   return key.str();
 }
 
@@ -576,6 +609,8 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
   auto scene = std::make_shared<Scene>();
   if (settings.preset == "handheld") {
     buildRoomScene(settings, scene.get());
+  } else if (settings.preset == "drone_near") {
+    buildNearScene(settings, scene.get());
   } else {
     buildStreetScene(settings, scene.get());
   }
@@ -585,8 +620,8 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
 }
 
 void validate(const RenderSettings& s) {
-  if (s.preset != "drive" && s.preset != "handheld" && s.preset != "forward")
-    throw std::invalid_argument("renderer: unknown preset '" + s.preset + "' (drive, handheld, forward)");
+  if (s.preset != "drive" && s.preset != "handheld" && s.preset != "forward" && s.preset != "drone_near")
+    throw std::invalid_argument("renderer: unknown preset '" + s.preset + "' (drive, handheld, forward, drone_near)");
   if (s.width < 8 || s.height < 8 || s.width > 16384 || s.height > 16384)
     throw std::invalid_argument("renderer: image size " + std::to_string(s.width) + "x" + std::to_string(s.height) +
                                 " out of range [8, 16384]");

@@ -22,6 +22,24 @@ namespace visual_gyro {
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
+// Candidates whose verified count reaches this fraction of the best one are refined before the
+// choice (at most kMaxRefinedCandidates of them, the best-verified first).
+constexpr double kRefineFraction = 0.6;
+constexpr int kMaxRefinedCandidates = 4;
+// Valley search: rotation steps [deg] about view x t, and the smallest |view x t| (sine of the
+// angle between the translation and the viewing direction) for which it runs.
+constexpr double kValleySteps[] = {-3.0, -2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0, 3.0};
+constexpr double kMinValleyLateral = 0.3;
+// A general-motion winner with fewer inliers than this fraction of the matches also searches the
+// two axes across the view (its own translation may be that of a wrong basin).
+constexpr double kValleyInlierRatio = 0.85;
+
+// Covariance model (see honestCovariance); calibrated once on the three real sequences with
+// ground truth (KITTI turn and straight, EuRoC MH_01 shaken), not per sequence.
+// Matches beyond this many do not shrink the covariance further: their errors are not
+// independent (calibration, shared image regions, residual distortion), so the statistical
+// 1/N of (J^T W J)^-1 overstates the information of a large match set.
+constexpr double kEffectiveMatches = 40.0;
 
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -325,6 +343,32 @@ std::vector<Candidate> topCandidates(const VoteResult& votes, const hyp::VoteGri
   return out;
 }
 
+// The covariance a fusion filter can weight by: the refinement's sigma^2 (J^T W J)^-1 scaled up
+// to kEffectiveMatches independent matches, plus the spread of the competing refined candidates
+// that explain the matches about as well as the winner (a close scene's rotation/translation
+// valley: two rotations a degree apart, each with its translation, that differ by fewer inliers
+// than the count's own noise), plus a floor for the unmodelled errors.
+Eigen::Matrix3d honestCovariance(const RefinedRotation& winner, const std::vector<RefinedRotation>& contenders) {
+  Eigen::Matrix3d covariance = winner.covariance * std::max(1.0, winner.inliers / kEffectiveMatches);
+  // Each contender is weighted by how indistinguishable its inlier count is from the winner's: the
+  // count's standard deviation is about sqrt(count) (binomial, most matches inliers), so a
+  // contender z such deviations behind weighs exp(-z^2 / 2). The weighted second moment about the
+  // winner is that of the mixture of the winner and its contenders.
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  double weights = 1.0;
+  for (const RefinedRotation& c : contenders) {
+    const Eigen::Vector3d d = logMap(winner.rotation.transpose() * c.rotation);
+    if (d.norm() < 1e-9) continue;  // converged to the winner itself
+    const double z = (winner.inliers - c.inliers) / std::sqrt(std::max(1, winner.inliers));
+    const double w = std::exp(-0.5 * z * z);
+    spread += w * d * d.transpose();
+    weights += w;
+  }
+  covariance += spread / weights;
+  covariance.diagonal().array() += kRotationCovarianceFloor * kRotationCovarianceFloor;
+  return covariance;
+}
+
 }  // namespace
 
 RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d>& previous,
@@ -346,25 +390,41 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   const bool prior_usable = settings_.use_prior && prior.valid && prior.rotation_vector.allFinite() &&
                             prior.rotation_vector.norm() < 60.0 * kDeg;
   RotationResult result;
-  VerifiedRotation best;
+  VoteDiagnostics& diagnostics = result.diagnostics;
+  diagnostics.prior_used = prior_usable;
+  struct Verified {
+    VerifiedRotation rotation;
+    const char* source;
+  };
+  std::vector<Verified> verified;
+  int best_verified = 0;
+  const char* best_verified_source = "";
   std::vector<Eigen::Vector3d> considered;
-  auto consider = [&](const Eigen::Vector3d& rotation_vector) {
+  auto consider = [&](const Eigen::Vector3d& rotation_vector, const char* source) {
     // Candidates within half a cell of one already verified would verify to the same inliers.
     for (const Eigen::Vector3d& c : considered)
       if ((c - rotation_vector).norm() < 0.5 * settings_.rotation_bin_deg * kDeg) return;
     considered.push_back(rotation_vector);
+    ++diagnostics.candidates_verified;
     // Voted candidates are off by a few tenths of a degree under translation: a looser gate lets
     // them gather the inliers (and the epipole) that refinement then tightens.
-    const VerifiedRotation v =
-        verifyRotation(previous, current, expMap(rotation_vector), 2.0 * threshold, seed);
-    if (v.inliers > best.inliers) best = v;
+    Verified v{verifyRotation(previous, current, expMap(rotation_vector), 2.0 * threshold, seed), source};
+    if (v.rotation.inliers > best_verified) {
+      best_verified = v.rotation.inliers;
+      best_verified_source = source;
+    }
+    verified.push_back(v);
   };
   const double needed = std::max<double>(settings_.min_matches, settings_.min_inlier_ratio * n);
   // Pass 1: a narrow window around the prior (or zero), voting only with triples whose pairwise
   // angles survive the motion (far points: rotation-only triples are unbiased there).
-  // Pass 2, when pass 1 explains too few matches (wrong prior, large motion, or no far structure):
-  // a wide window and every non-degenerate triple; its biased modes are still good starting points
-  // for the translation-aware refinement.
+  // Pass 2, a wide window without the prior and with every non-degenerate triple, runs when pass 1
+  // explains too few matches (wrong prior, large motion, or no far structure), and whenever the
+  // prior itself is the best candidate: a prior is only a guess from the previous frame, and
+  // under parallax a wrong rotation plus a translation can explain a close scene almost as well as
+  // the right one, so a prior that is never challenged by the data can carry an error from frame
+  // to frame. Its biased modes are still good starting points for the translation-aware
+  // refinement.
   for (int pass = 0; pass < 2; ++pass) {
     const bool narrow = pass == 0;
     const Eigen::Vector3d centre = narrow && prior_usable ? prior.rotation_vector : Eigen::Vector3d::Zero();
@@ -382,17 +442,97 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     result.hypotheses_accepted += static_cast<int>(votes.accepted);
     const int winning = votes.winner >= 0 ? votes.histogram[votes.winner] : 0;
     result.winning_votes = std::max(result.winning_votes, winning);
+    if (!narrow) diagnostics.wide_vote = true;
     for (const Candidate& c : topCandidates(votes, request.grid, settings_.candidates))
-      consider(c.rotation_vector);
+      consider(c.rotation_vector, narrow ? "narrow" : "wide");
     // The prior, and no rotation at all, are candidates too: under strong translation every
     // rotation-only triple is biased, and the truth is usually closer to one of them.
-    if (narrow && prior_usable) consider(prior.rotation_vector);
-    if (narrow) consider(Eigen::Vector3d::Zero());
-    if (best.inliers >= needed && result.winning_votes >= settings_.min_votes) break;
+    if (narrow && prior_usable) consider(prior.rotation_vector, "prior");
+    if (narrow) consider(Eigen::Vector3d::Zero(), "identity");
+    const bool prior_unchallenged = prior_usable && std::string(best_verified_source) == "prior";
+    if (best_verified >= needed && result.winning_votes >= settings_.min_votes && !prior_unchallenged) break;
   }
-  if (best.inliers == 0) return invalidResult("no candidate rotation (all triples degenerate)");
+  if (best_verified == 0) return invalidResult("no candidate rotation (all triples degenerate)");
 
-  RefinedRotation refined = refineRotation(previous, current, best, threshold, settings_.refine_iterations);
+  // Refine, then choose. The verification's count (a loose gate, a translation from a few
+  // samples) ranks candidates only roughly: along the rotation/translation valley of a close scene
+  // a rotation a degree off, with a translation that absorbs the difference, passes the loose gate
+  // about as often as the right one. Refinement separates them: the right rotation converges to a
+  // tight fit of most matches, the wrong one to a local minimum that keeps clearly fewer. So every
+  // candidate with a comparable verified count is refined, and the refined count decides.
+  std::stable_sort(verified.begin(), verified.end(), [](const Verified& a, const Verified& b) {
+    return a.rotation.inliers > b.rotation.inliers;
+  });
+  RefinedRotation refined;
+  const Verified* winner = nullptr;
+  int refined_count = 0;
+  std::vector<RefinedRotation> contenders;  // every refined candidate, the winner included
+  for (const Verified& v : verified) {
+    if (refined_count == kMaxRefinedCandidates) break;
+    if (v.rotation.inliers < kRefineFraction * best_verified) break;
+    const RefinedRotation r = refineRotation(previous, current, v.rotation, threshold, settings_.refine_iterations);
+    ++refined_count;
+    contenders.push_back(r);
+    if (winner == nullptr || explainsBetter(r, refined)) {
+      if (winner != nullptr) diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
+      refined = r;
+      winner = &v;
+    } else {
+      diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
+    }
+  }
+  // The valley of a close scene. A lateral translation t and a rotation about view x t move the
+  // image alike, to first order; only the depth differences between the points tell them apart.
+  // Candidates that start on the wrong side of that valley converge to its nearest local
+  // minimum, a fraction of a degree to a few degrees from the right one, so the winner is
+  // re-verified at rotations stepped along the valley and the best step, when it explains more
+  // matches, is refined and competes. The valley is about view x t when the winner's translation
+  // is lateral; a winner that leaves many matches unexplained may sit in a wrong basin whose
+  // translation says nothing of the true valley, so then both axes across the view are searched.
+  // Under forward motion with the matches explained there is no such valley and nothing runs.
+  if (!refined.pure_rotation && !refined.translation.isZero()) {
+    Eigen::Vector3d view = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& b : previous) view += b;
+    view.normalize();
+    std::vector<Eigen::Vector3d> axes;
+    const Eigen::Vector3d lateral = view.cross(refined.translation);
+    if (lateral.norm() >= kMinValleyLateral) axes.push_back(lateral.normalized());
+    if (refined.inliers < kValleyInlierRatio * n) {
+      const Eigen::Vector3d across = view.cross(std::abs(view.x()) < 0.9 ? Eigen::Vector3d::UnitX()
+                                                                        : Eigen::Vector3d::UnitY()).normalized();
+      axes.push_back(across);
+      axes.push_back(view.cross(across));
+    }
+    VerifiedRotation best_step;
+    if (!axes.empty()) {
+      best_step = verifyRotation(previous, current, refined.rotation, threshold, seed + 7);
+      diagnostics.valley_searched = true;
+    }
+    bool stepped = false;
+    for (const Eigen::Vector3d& axis : axes) {
+      for (double step_deg : kValleySteps) {
+        const Eigen::Matrix3d stepped_rotation = expMap(step_deg * kDeg * axis) * refined.rotation;
+        const VerifiedRotation v = verifyRotation(previous, current, stepped_rotation, threshold, seed + 7);
+        if (v.inliers > best_step.inliers) {
+          best_step = v;
+          stepped = true;
+        }
+      }
+    }
+    if (stepped) {
+      const RefinedRotation r = refineRotation(previous, current, best_step, threshold, settings_.refine_iterations);
+      contenders.push_back(r);
+      if (explainsBetter(r, refined)) {
+        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
+        refined = r;
+        diagnostics.valley_moved = true;
+      } else {
+        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
+      }
+    }
+  }
+  diagnostics.winner_source = winner->source;
+  const VerifiedRotation& best = winner->rotation;
   // Local optimisation: the refined rotation is better than the voted one, so the translation
   // search on it finds a better epipole and more inliers; repeat while the inlier set grows.
   for (int round = 1; round <= 1; ++round) {
@@ -407,10 +547,15 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   }
   fillAngles(refined.rotation, &result);
   result.covariance = refined.covariance;
+  result.covariance = honestCovariance(refined, contenders);
   for (int k = 0; k < 3; ++k)
     result.covariance(k, k) = std::max(result.covariance(k, k), settings_.min_covariance_rad2);
   result.inliers = refined.inliers;
   result.pure_rotation = refined.pure_rotation;
+  diagnostics.rotation_inliers = best.rotation_inliers;
+  diagnostics.epipolar_inliers = best.epipolar_inliers;
+  diagnostics.residual_sigma = refined.residual_sigma;
+  if (prior_usable) diagnostics.prior_offset = rotationAngleBetween(expMap(prior.rotation_vector), refined.rotation);
 
   if (result.winning_votes < settings_.min_votes) {
     result.error = "flat histogram: winning cell has " + std::to_string(result.winning_votes) +

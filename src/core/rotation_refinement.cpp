@@ -169,6 +169,7 @@ RefinedRotation refinePureRotation(const std::vector<Eigen::Vector3d>& previous,
   out.pure_rotation = true;
   const double dof = std::max(1, 2 * inliers - 3);
   const double sigma2 = sum_sq / dof;
+  out.residual_sigma = std::sqrt(sigma2);
   Eigen::FullPivLU<Eigen::Matrix3d> lu(A);
   out.covariance = lu.isInvertible() ? Eigen::Matrix3d(sigma2 * lu.inverse())
                                      : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
@@ -282,8 +283,10 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
     ++inliers;
   }
   out.rotation = R;
+  out.translation = t;
   out.inliers = inliers;
   const double sigma2 = sum_sq / std::max(1, inliers - 5);
+  out.residual_sigma = std::sqrt(sigma2);
   Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(A);
   if (lu.isInvertible()) {
     out.covariance = sigma2 * lu.inverse().topLeftCorner<3, 3>();
@@ -374,6 +377,15 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
   }
   out.inliers = std::max(out.epipolar_inliers, out.rotation_inliers);
   return out;
+}
+
+bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b) {
+  if (a.pure_rotation == b.pure_rotation) return a.inliers > b.inliers;
+  // The rule of refineRotation: general motion when (general - pure) >= gain * general.
+  const RefinedRotation& general = a.pure_rotation ? b : a;
+  const RefinedRotation& pure = a.pure_rotation ? a : b;
+  const bool general_wins = general.inliers - pure.inliers >= kTranslationGain * general.inliers;
+  return a.pure_rotation ? !general_wins : general_wins;
 }
 
 RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,

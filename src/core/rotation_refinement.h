@@ -34,7 +34,16 @@ struct RefinedRotation {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< rotation vector [rad^2]
   int inliers = 0;
   bool pure_rotation = false;  ///< refined as a pure rotation (no usable translation)
+  /// Unit translation direction in the previous frame (general motion); zero for pure rotation.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  double residual_sigma = 0.0;  ///< RMS residual of the inliers [rad] (the covariance's sigma)
 };
+
+/// True when refinement `a` explains the matches better than `b`: more inliers under the same
+/// model; a general motion (rotation + translation, two more degrees of freedom) must explain
+/// clearly more than a pure rotation -- the margin of the model selection in refineRotation -- and a
+/// pure rotation wins over a general motion unless that margin is met.
+bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 
 /// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
 /// matches as rotation + translation, minimises the angular residuals |b_prev x R b_cur| (robust

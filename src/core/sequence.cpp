@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -150,6 +151,7 @@ Sequence loadKitti(const fs::path& root) {
     if (seq.orientations.size() != seq.image_paths.size())
       fail(poses, std::to_string(seq.orientations.size()) + " poses for " + std::to_string(seq.image_paths.size()) +
                       " images");
+    seq.truth = "kitti_poses";
   }
 
   const fs::path times = root / "times.txt";
@@ -242,6 +244,76 @@ DistortionModel eurocDistortion(const std::string& name, const fs::path& file, i
   return model;
 }
 
+/// Reads EuRoC's ground truth (timestamp_ns, p_RS_R x y z [m], q_RS w x y z, then optionally
+/// velocity and biases: 8 or more columns), the body pose in the world, and fills the camera's
+/// orientation and position at every image stamp (slerp / linear interpolation between the two
+/// nearest samples), expressed in the first image's camera frame like KITTI's poses. Images outside
+/// the file's time span get NaN poses (no truth for their pairs).
+void readEurocPoses(const fs::path& file, const Eigen::Vector3d& t_bs, Sequence* seq) {
+  struct PoseSample {
+    double stamp;
+    Eigen::Vector3d position;
+    Eigen::Quaterniond orientation;
+  };
+  std::vector<PoseSample> samples;
+  const auto lines = readLines(file);
+  for (size_t n = 0; n < lines.size(); ++n) {
+    const std::string line = trim(lines[n]);
+    if (line.empty() || line[0] == '#') continue;
+    const size_t comma = line.find(',');
+    std::vector<double> v;
+    char* end = nullptr;
+    errno = 0;
+    // The stamp has 19 digits: parse it as an integer, not through a double.
+    const long long ns = comma == std::string::npos ? 0 : std::strtoll(line.substr(0, comma).c_str(), &end, 10);
+    if (comma == std::string::npos || errno != 0 || !parseNumbers(line.substr(comma + 1), &v) || v.size() < 7)
+      fail(file, "expected 'timestamp_ns,px,py,pz,qw,qx,qy,qz[,...]'", static_cast<int>(n) + 1);
+    PoseSample sample{static_cast<double>(ns) * 1e-9, Eigen::Vector3d(v[0], v[1], v[2]),
+                      Eigen::Quaterniond(v[3], v[4], v[5], v[6])};
+    const double norm = sample.orientation.norm();
+    if (!sample.position.allFinite() || !std::isfinite(norm) || std::abs(norm - 1.0) > 1e-2)
+      fail(file, "position not finite or quaternion not of unit norm", static_cast<int>(n) + 1);
+    sample.orientation.normalize();
+    if (!samples.empty() && sample.stamp <= samples.back().stamp)
+      fail(file, "time stamps must increase", static_cast<int>(n) + 1);
+    samples.push_back(sample);
+  }
+  if (samples.size() < 2) fail(file, "fewer than two poses");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Eigen::Matrix3d> world_from_camera;
+  std::vector<Eigen::Vector3d> camera_in_world;
+  for (double t : seq->stamps) {
+    if (t < samples.front().stamp || t > samples.back().stamp) {
+      world_from_camera.push_back(Eigen::Matrix3d::Constant(nan));
+      camera_in_world.push_back(Eigen::Vector3d::Constant(nan));
+      continue;
+    }
+    auto it = std::lower_bound(samples.begin(), samples.end(), t,
+                               [](const PoseSample& s, double value) { return s.stamp < value; });
+    if (it == samples.begin()) ++it;
+    const PoseSample& a = *(it - 1);
+    const PoseSample& b = *it;
+    const double f = (t - a.stamp) / (b.stamp - a.stamp);
+    const Eigen::Matrix3d R_wb = a.orientation.slerp(f, b.orientation).toRotationMatrix();
+    const Eigen::Vector3d p_wb = (1.0 - f) * a.position + f * b.position;
+    world_from_camera.push_back(R_wb * seq->body_from_camera);
+    camera_in_world.push_back(p_wb + R_wb * t_bs);
+  }
+  // Relative to the first image with a pose, so the sequence starts at identity like KITTI's.
+  size_t first = 0;
+  while (first < world_from_camera.size() && !world_from_camera[first].allFinite()) ++first;
+  if (first == world_from_camera.size()) fail(file, "does not cover any image stamp");
+  const Eigen::Matrix3d R0 = world_from_camera[first];
+  const Eigen::Vector3d p0 = camera_in_world[first];
+  seq->orientations.clear();
+  seq->positions.clear();
+  for (size_t k = 0; k < world_from_camera.size(); ++k) {
+    seq->orientations.push_back(R0.transpose() * world_from_camera[k]);
+    seq->positions.push_back(R0.transpose() * (camera_in_world[k] - p0));
+  }
+  seq->truth = "poses";
+}
+
 Sequence loadEuroc(const fs::path& root) {
   Sequence seq;
   seq.layout = "euroc";
@@ -290,6 +362,7 @@ Sequence loadEuroc(const fs::path& root) {
       tbs_data[10];
   if (!isRotation(R_bs, 1e-4)) fail(yaml_path, "T_BS rotation is not orthonormal", tbs + 1);
   seq.body_from_camera = orthonormalize(R_bs);
+  const Eigen::Vector3d t_bs(tbs_data[3], tbs_data[7], tbs_data[11]);
   seq.camera = CameraModel(intrinsics[0], intrinsics[1], intrinsics[2], intrinsics[3],
                            static_cast<int>(resolution[0]), static_cast<int>(resolution[1]), model, distortion);
   const std::string why = seq.camera.validate();
@@ -317,6 +390,11 @@ Sequence loadEuroc(const fs::path& root) {
       seq.gyro.push_back(sample);
     }
   }
+  if (!seq.gyro.empty()) seq.truth = "gyro";
+
+  // Poses are preferred to the gyro: they carry no bias.
+  const fs::path ground_truth = root / "state_groundtruth_estimate0" / "data.csv";
+  if (fs::exists(ground_truth)) readEurocPoses(ground_truth, t_bs, &seq);
   return seq;
 }
 
@@ -364,6 +442,8 @@ bool Sequence::trueRotation(size_t k, Eigen::Matrix3d* rotation) const {
   if (rotation == nullptr || k == 0 || k >= image_paths.size()) return false;
   if (hasPoses()) {
     if (k >= orientations.size()) return false;
+    // Images outside the ground truth's time span have NaN poses.
+    if (!orientations[k - 1].allFinite() || !orientations[k].allFinite()) return false;
     *rotation = orientations[k - 1].transpose() * orientations[k];
     return true;
   }
@@ -382,7 +462,7 @@ bool Sequence::trueAngularVelocity(size_t k, Eigen::Vector3d* omega) const {
   if (omega == nullptr || k == 0 || k >= image_paths.size() || k >= stamps.size()) return false;
   const double dt = stamps[k] - stamps[k - 1];
   if (!(dt > 0)) return false;
-  if (hasGyro()) {
+  if (hasGyro() && !hasPoses()) {
     Eigen::Vector3d integral = Eigen::Vector3d::Zero();
     if (!forEachGyroPiece(gyro, stamps[k - 1], stamps[k],
                           [&](double piece, const Eigen::Vector3d& w_body) { integral += piece * w_body; }))

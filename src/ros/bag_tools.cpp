@@ -152,7 +152,8 @@ BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& ba
                                std::to_string(sequence.camera.width()) + "x" +
                                std::to_string(sequence.camera.height()));
     }
-    if (sequence.hasPoses() && k < sequence.orientations.size()) {
+    // Images outside the ground truth's time span have NaN poses: no ground-truth message for them.
+    if (sequence.hasPoses() && k < sequence.orientations.size() && sequence.orientations[k].allFinite()) {
       geometry_msgs::PoseStamped pose;
       pose.header.stamp = stamp;
       pose.header.frame_id = topics.world_frame;

@@ -399,6 +399,8 @@ struct FramePair {
   int matches_found = 0;      ///< matches the front end found (before --max-matches)
   StageTimes front_end;       ///< detect, describe, match of the current frame [ms]
   bool has_truth = false;
+  /// The truth is from poses, not from a (biased) gyro: only then is it fit to judge a covariance.
+  bool truth_from_poses = false;
   Eigen::Matrix3d true_rotation = Eigen::Matrix3d::Identity();  ///< b_prev ~ R b_cur
   bool has_gyro = false;
   Eigen::Vector3d true_omega = Eigen::Vector3d::Zero();  ///< mean gyro rate, camera frame [rad/s]
@@ -415,11 +417,14 @@ void fillTruth(const Sequence& seq, FramePair* p) {
     if (ok) r = r * step;
   }
   p->has_truth = ok;
+  p->truth_from_poses = ok && seq.hasPoses();
   if (ok) p->true_rotation = r;
   if (seq.positions.size() == seq.image_paths.size()) {
     p->true_translation = (seq.positions[p->index] - seq.positions[p->previous_index]).norm();
   }
-  if (seq.hasGyro()) {
+  // A rate reference where one was measured independently of the frame steps: the gyro, or
+  // EuRoC's ground-truth poses (KITTI's poses already give the rotation errors).
+  if (seq.truth == "gyro" || seq.truth == "poses") {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     double weight = 0.0;
     bool gyro_ok = true;
@@ -575,6 +580,12 @@ struct MethodEstimate {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< b_prev ~ R b_cur
   Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();
   double estimate_ms = 0.0;
+  /// Covariance of the rotation vector [rad^2] (vote / paper; the baselines give none).
+  bool has_covariance = false;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int inliers = -1;  ///< vote / paper: RotationResult::inliers; -1 for the baselines
+  bool pure_rotation = false;
+  VoteDiagnostics diagnostics;  ///< vote only
   // vote / paper only (NaN for the baselines): the estimate's voter part (host clock), its GPU
   // kernels (NaN on the CPU backend), and the host part after the vote (see StageTimes).
   double vote_ms = kNaN, vote_device_ms = kNaN, refine_ms = kNaN;
@@ -609,9 +620,14 @@ class OwnEstimatorRunner : public MethodRunner {
     prior_.update(r, pair.dt);
     out.valid = r.valid;
     out.error = r.error;
+    out.inliers = r.inliers;
+    out.pure_rotation = r.pure_rotation;
+    out.diagnostics = r.diagnostics;
     if (r.valid) {
       out.rotation = r.rotation;
       out.rotation_vector = r.rotation_vector;
+      out.has_covariance = true;
+      out.covariance = r.covariance;
     }
     return out;
   }
@@ -674,6 +690,18 @@ struct FrameRow {
   bool valid = false;
   double yaw_est_deg = 0, yaw_true_deg = kNaN, rot_err_deg = kNaN, yaw_err_deg = kNaN;
   double rate_dps = 0, rate_err_dps = kNaN, estimate_ms = 0;
+  /// Normalised estimation error squared e^T C^-1 e of the rotation vector error e (valid
+  /// estimates with a covariance and truth from poses only: a gyro's bias is no estimation error).
+  double nees = kNaN;
+  double sigma_deg = kNaN;  ///< sqrt(trace C) [deg]
+  /// Rotation error as a rotation vector (estimate^T truth, camera frame) [deg], and the standard
+  /// deviations the covariance gives each axis [deg].
+  Eigen::Vector3d error_vector_deg = Eigen::Vector3d::Constant(kNaN);
+  Eigen::Vector3d sigma_axes_deg = Eigen::Vector3d::Constant(kNaN);
+  int inliers = -1;
+  bool pure_rotation = false;
+  VoteDiagnostics diagnostics;
+  std::string error;
 };
 
 struct MethodSummary {
@@ -688,8 +716,13 @@ struct MethodSummary {
   double true_rotation_mean = kNaN;     ///< mean true rotation per pair [deg]
   double true_translation_mean = kNaN;  ///< mean true translation per pair [m]
   double true_rate_mean = kNaN;         ///< mean |gyro rate| [deg/s] (EuRoC)
+  double nees_mean = kNaN;      ///< mean NEES over the valid frames with truth (3 when honest)
+  double nees_beyond99 = kNaN;  ///< fraction of those frames beyond the 99 % chi-square bound
   std::string first_error;
 };
+
+/// 99 % quantile of the chi-square distribution with 3 degrees of freedom.
+constexpr double kChiSquare3Dof99 = 11.345;
 
 MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
                              const std::vector<FramePair>& pairs) {
@@ -702,6 +735,8 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
   double rot_max = 0, yaw_max = 0;
   double true_rot_sum = 0, true_trans_sum = 0;
   int true_trans_n = 0;
+  double nees_sum = 0;
+  int nees_n = 0, nees_beyond = 0;
   for (const FramePair& p : pairs) {
     if (std::isfinite(p.true_translation)) {
       true_trans_sum += p.true_translation;
@@ -730,6 +765,26 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
       rot_max = std::max(rot_max, row.rot_err_deg);
       yaw_max = std::max(yaw_max, std::abs(row.yaw_err_deg));
       ++truth_n;
+    }
+    row.inliers = e.inliers;
+    row.pure_rotation = e.pure_rotation;
+    row.diagnostics = e.diagnostics;
+    row.error = e.error;
+    if (e.has_covariance) {
+      row.sigma_deg = std::sqrt(e.covariance.trace()) * kRadToDeg;
+      row.sigma_axes_deg = e.covariance.diagonal().cwiseSqrt() * kRadToDeg;
+    }
+    if (p.has_truth) row.error_vector_deg = rotationVector(r_est.transpose() * p.true_rotation) * kRadToDeg;
+    if (p.truth_from_poses && e.valid && e.has_covariance) {
+      // Error as a rotation vector in the camera frame, the frame of the covariance.
+      const Eigen::Vector3d err = rotationVector(r_est.transpose() * p.true_rotation);
+      const Eigen::FullPivLU<Eigen::Matrix3d> lu(e.covariance);
+      if (lu.isInvertible()) {
+        row.nees = err.dot(lu.solve(err));
+        nees_sum += row.nees;
+        nees_beyond += row.nees > kChiSquare3Dof99;
+        ++nees_n;
+      }
     }
     if (p.has_gyro) {
       row.rate_err_dps = (omega - p.true_omega).norm() * kRadToDeg;
@@ -773,6 +828,10 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
     s.true_rotation_mean = true_rot_sum / truth_n;
   }
   if (true_trans_n > 0) s.true_translation_mean = true_trans_sum / true_trans_n;
+  if (nees_n > 0) {
+    s.nees_mean = nees_sum / nees_n;
+    s.nees_beyond99 = static_cast<double>(nees_beyond) / nees_n;
+  }
   if (gyro_n > 0) {
     s.rate_rmse = std::sqrt(rate_sq / gyro_n);
     s.true_rate_mean = true_rate_sum / gyro_n;
@@ -798,13 +857,19 @@ void printSummary(const Sequence& seq, const Options& o, const MethodSummary& s)
   std::cout << "   rotation error  RMSE " << fmt(s.rot_rmse) << " deg, max " << fmt(s.rot_max) << " deg\n";
   std::cout << "   yaw error       RMSE " << fmt(s.yaw_rmse) << " deg, max " << fmt(s.yaw_max) << " deg\n";
   std::cout << "   rate            mean " << fmt(s.mean_rate) << " deg/s";
-  if (std::isfinite(s.rate_rmse)) {
+  if (std::isfinite(s.rate_rmse) && seq.truth == "gyro") {
     // The loader integrates the raw gyro (bias included), so on a static stretch the reference
     // itself reads the bias; its mean is shown to make that visible.
     std::cout << ", RMSE vs gyro " << fmt(s.rate_rmse) << " deg/s (gyro: raw, bias not removed, mean |rate| "
               << fmt(s.true_rate_mean) << " deg/s)";
+  } else if (std::isfinite(s.rate_rmse)) {
+    std::cout << ", RMSE vs poses " << fmt(s.rate_rmse) << " deg/s (mean |rate| " << fmt(s.true_rate_mean)
+              << " deg/s)";
   }
   std::cout << "\n";
+  if (std::isfinite(s.nees_mean))
+    std::cout << "   covariance      NEES mean " << fmt(s.nees_mean, 2) << " (3 when honest), beyond 99 % bound "
+              << fmt(100.0 * s.nees_beyond99, 1) << " % of valid frames\n";
   std::cout << "   matches         mean " << fmt(s.matches_mean, 1) << "\n";
   std::cout << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
             << fmt(s.match) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
@@ -842,7 +907,10 @@ std::string jsonLine(const Sequence& seq, const Options& o, const EstimatorSetti
       .add("stride", o.stride)
       .add("true_rot_mean_deg", s.true_rotation_mean)
       .add("true_trans_mean_m", s.true_translation_mean)
-      .add("gyro_mean_rate_dps", s.true_rate_mean);
+      .add("gyro_mean_rate_dps", s.true_rate_mean)
+      .add("truth", seq.truth)
+      .add("nees_mean", s.nees_mean)
+      .add("nees_beyond_99", s.nees_beyond99);
   return j.str();
 }
 
@@ -850,7 +918,9 @@ void writeCsv(const std::string& path, const std::vector<MethodSummary>& all) {
   std::ofstream f(path);
   if (!f) throw DataError("cannot write " + path);
   f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
-       "rate_err_dps\n";
+       "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
+       "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,err_x_deg,err_y_deg,"
+       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,error\n";
   auto num = [](double v) -> std::string {
     if (!std::isfinite(v)) return "";
     char buf[32];
@@ -862,7 +932,16 @@ void writeCsv(const std::string& path, const std::vector<MethodSummary>& all) {
       f << r.frame << ',' << s.method << ',' << r.matches << ',' << (r.valid ? 1 : 0) << ','
         << num(r.yaw_est_deg) << ',' << num(r.yaw_true_deg) << ',' << num(r.rot_err_deg) << ','
         << num(r.yaw_err_deg) << ',' << num(r.rate_dps) << ',' << num(r.estimate_ms) << ','
-        << num(r.rate_err_dps) << '\n';
+        << num(r.rate_err_dps) << ',' << num(r.nees) << ',' << num(r.sigma_deg) << ',' << r.inliers << ','
+        << (r.pure_rotation ? 1 : 0) << ',' << (r.diagnostics.prior_used ? 1 : 0) << ','
+        << (r.diagnostics.wide_vote ? 1 : 0) << ',' << r.diagnostics.winner_source << ','
+        << r.diagnostics.candidates_verified << ',' << r.diagnostics.rotation_inliers << ','
+        << r.diagnostics.epipolar_inliers << ',' << r.diagnostics.runner_up_inliers << ','
+        << (r.diagnostics.valley_moved ? "moved" : r.diagnostics.valley_searched ? "searched" : "") << ','
+        << num(r.diagnostics.prior_offset * kRadToDeg) << ',' << num(r.diagnostics.residual_sigma * kRadToDeg);
+      for (int k = 0; k < 3; ++k) f << ',' << num(r.error_vector_deg[k]);
+      for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
+      f << ",\"" << r.error << "\"\n";
     }
   }
   if (!f) throw DataError("cannot write " + path);

@@ -14,13 +14,13 @@
 namespace {
 
 const char* const kUsage =
-    "usage: render_sequence --preset drive|handheld|forward --out DIR [options]\n"
+    "usage: render_sequence --preset drive|handheld|forward|drone_near --out DIR [options]\n"
     "  --out DIR       output folder (KITTI layout; --output is accepted too)\n"
     "  --frames N      number of frames (default 60)\n"
     "  --width W       image width [px] (default 640)\n"
     "  --height H      image height [px] (default 480)\n"
     "  --focal F       focal length fx = fy [px] (default 500); the principal point is the centre\n"
-    "  --rate HZ       frame rate (default 10 for drive/forward, 30 for handheld)\n"
+    "  --rate HZ       frame rate (default 10 for drive/forward, 30 for handheld, 20 for drone_near)\n"
     "  --noise SIGMA   Gaussian pixel noise [grey levels] (default 2)\n"
     "  --seed S        texture and noise seed (default 7)\n"
     "Presets: drive = car at 10 m/s with a right and a left turn (up to 30 deg/s); handheld =\n"
@@ -100,10 +100,12 @@ int main(int argc, char** argv) {
     }
   }
   if (!preset_given) return usageError("--preset is required");
-  if (settings.preset != "drive" && settings.preset != "handheld" && settings.preset != "forward")
+  if (settings.preset != "drive" && settings.preset != "handheld" && settings.preset != "forward" &&
+      settings.preset != "drone_near")
     return usageError("unknown preset '" + settings.preset + "'");
   if (out.empty()) return usageError("--out is required");
-  if (!rate_given) settings.rate_hz = settings.preset == "handheld" ? 30.0 : 10.0;
+  if (!rate_given)
+    settings.rate_hz = settings.preset == "handheld" ? 30.0 : settings.preset == "drone_near" ? 20.0 : 10.0;
   settings.setCentredCamera(settings.width, settings.height, settings.fx);
 
   visual_gyro::RenderedSequence sequence;
