@@ -58,7 +58,7 @@ for line in sys.stdin:
 }
 
 # 1. Shared real sequences.
-for name in kitti_turn kitti_straight euroc_v101_static; do
+for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake; do
   if [[ -d ${DATA_DIR}/${name} ]]; then
     run_eval shared "${name}" 0 "${DATA_DIR}/${name}"
   else
@@ -67,7 +67,7 @@ for name in kitti_turn kitti_straight euroc_v101_static; do
 done
 
 # 2. Rendered sequences (KITTI layout written by render_sequence).
-for preset in drive forward handheld; do
+for preset in drive forward handheld drone_near; do
   dir="${OUT}/rendered/${preset}"
   # Rendered afresh each time (a few seconds): a cached folder could be stale after renderer changes.
   rm -rf "${dir}"

@@ -30,7 +30,8 @@ METHOD_ORDER = ["vote", "paper", "essential5", "fundamental8", "opengv_rotation_
 CSV_FIELDS = ["group", "label", "x", "dataset", "method", "backend", "frames", "invalid",
               "rot_rmse_deg", "rot_max_deg", "yaw_rmse_deg", "yaw_max_deg", "mean_rate_dps",
               "rate_rmse_dps", "ms_detect", "ms_describe", "ms_match", "ms_estimate", "ms_total",
-              "matches_mean", "outliers", "stride", "true_rot_mean_deg", "true_trans_mean_m"]
+              "matches_mean", "outliers", "stride", "true_rot_mean_deg", "true_trans_mean_m", "truth",
+              "nees_mean", "nees_beyond_99"]
 
 
 def method_key(m):
@@ -111,6 +112,17 @@ def write_table(rows, methods, path, machine, sweep_rows):
     out.extend(method_table(runs, methods, rot_cell))
     out.append("\n## Yaw error RMSE [deg]; mean estimated rate [deg/s] (rate RMSE vs gyro where one exists)\n")
     out.extend(method_table(runs, methods, yaw_cell))
+    nees_methods = [m for m in methods if any(r.get("nees_mean") is not None for r in rows if r["method"] == m)]
+    if nees_methods:
+        out.append("\n## Covariance: NEES mean (3 when honest); frames beyond the 99 % chi-square bound\n")
+        out.append("Normalised estimation error squared of the rotation vector, e^T C^-1 e, over the valid frames "
+                   "of sequences whose truth is poses (a gyro's bias is no estimation error). Goal: mean in "
+                   "[1, 6], at most 5 % of frames beyond 11.34.\n")
+        out.extend(method_table({k: v for k, v in runs.items()
+                                 if any(r.get("nees_mean") is not None for r in v.values())},
+                                nees_methods,
+                                lambda r: (f"{fmt(r.get('nees_mean'), 2)}; {100 * num(r.get('nees_beyond_99')):.1f} %"
+                                           if r.get("nees_mean") is not None else "n/a")))
     out.append("\n## Estimation time per frame pair [ms] (front end shared: detect + describe + match)\n")
     out.append("| sequence | matches | front end | " + " | ".join(methods) + " |")
     out.append("|---" * (len(methods) + 3) + "|")
@@ -261,6 +273,35 @@ def line_plot(rows, methods, group, xlabel, path, title, xkey="x"):
     plt.close(fig)
 
 
+def nees_plot(rows, methods, path):
+    """NEES mean per sequence (pose truth) for the methods that give a covariance, with the
+    honest value 3 and the goal band [1, 6] marked."""
+    with_nees = [r for r in rows if r.get("nees_mean") is not None and r["group"] in ("shared", "rendered")]
+    if not with_nees:
+        return
+    labels = list(dict.fromkeys(r["label"] for r in with_nees))
+    ms = [m for m in methods if any(r["method"] == m for r in with_nees)]
+    fig, ax = plt.subplots(figsize=(max(7, 1.4 * len(labels) + 4), 4.2))
+    width = 0.8 / max(1, len(ms))
+    x = np.arange(len(labels))
+    for i, m in enumerate(ms):
+        vals = [next((num(r["nees_mean"]) for r in with_nees if r["label"] == lab and r["method"] == m), np.nan)
+                for lab in labels]
+        ax.bar(x + (i - (len(ms) - 1) / 2) * width, vals, width, label=m)
+    ax.axhspan(1.0, 6.0, color="green", alpha=0.08, label="goal [1, 6]")
+    ax.axhline(3.0, color="green", lw=1, label="honest: 3")
+    ax.set_yscale("log")
+    ax.set_xticks(x)
+    ax.set_xticklabels(labels, rotation=15)
+    ax.set_ylabel("NEES mean (rotation vector)")
+    ax.set_title("covariance honesty per sequence")
+    ax.grid(axis="y", alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def base_of(group):
     return {"outliers": "drive", "translation": "forward"}.get(group, "")
 
@@ -390,6 +431,7 @@ def main():
              "accuracy per method and sequence", os.path.join(a.out, "accuracy.png"))
     bar_plot(rows, methods, "yaw_rmse_deg", "yaw error RMSE [deg]",
              "yaw accuracy per method and sequence", os.path.join(a.out, "accuracy_yaw.png"))
+    nees_plot(rows, methods, os.path.join(a.out, "nees.png"))
     bar_plot(rows, methods, "ms_estimate", "estimate time per frame pair [ms]",
              f"estimation time ({a.machine})", os.path.join(a.out, "estimate_time.png"))
     line_plot(rows, methods, "outliers", "injected outlier fraction", os.path.join(a.out, "accuracy_vs_outliers.png"),
