@@ -29,6 +29,7 @@ add_rostest(test/ros/hz.test DEPENDENCIES publish_rendered visual_gyro_node visu
 # Yaw plot markers, compressed images, filter-style integration of the rates (no ROS master).
 catkin_add_gtest(test_plot_and_inputs test/ros/test_plot_and_inputs.cpp)
 target_link_libraries(test_plot_and_inputs visual_gyro_ros_tools gtest_main)
+target_compile_definitions(test_plot_and_inputs PRIVATE VISUAL_GYRO_SOURCE_DIR="${VISUAL_GYRO_REPO_DIR}")
 
 # replay.launch with the real rosbag play at rate 1 against the frame-by-frame replay (kitti_turn).
 add_rostest_gtest(test_rosbag_replay test/ros/rosbag_replay.test test/ros/test_rosbag_replay.cpp test/test_support.cpp)

@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <map>
 #include <set>
+#include <sstream>
 
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
@@ -140,6 +143,44 @@ TEST(YawPlot, ScrollsOverLongRuns) {
   EXPECT_FALSE(labels.count("ground truth")) << "no truth legend without truth";
   plot.reset();
   EXPECT_TRUE(plot.empty());
+}
+
+/// "name: value" lines of config/visual_gyro.yaml (comments dropped).
+std::map<std::string, std::string> yamlValues() {
+  std::map<std::string, std::string> values;
+  std::ifstream in(std::string(VISUAL_GYRO_SOURCE_DIR) + "/config/visual_gyro.yaml");
+  std::string line;
+  while (std::getline(in, line)) {
+    line = line.substr(0, line.find('#'));
+    const size_t colon = line.find(':');
+    if (colon == std::string::npos || line.empty() || line[0] == ' ') continue;
+    std::string value = line.substr(colon + 1);
+    value.erase(0, value.find_first_not_of(' '));
+    value.erase(value.find_last_not_of(' ') + 1);
+    values[line.substr(0, colon)] = value;
+  }
+  return values;
+}
+
+// The plot's defaults live in YawPlotSettings; the yaml the launch files load and the README's
+// parameter table must say the same.
+TEST(YawPlot, DefaultsAgreeWithYamlAndReadme) {
+  const auto yaml = yamlValues();
+  ASSERT_FALSE(yaml.empty()) << "cannot read config/visual_gyro.yaml";
+  const YawPlotSettings defaults;
+  EXPECT_DOUBLE_EQ(std::stod(yaml.at("plot_window")), defaults.window);
+  EXPECT_DOUBLE_EQ(std::stod(yaml.at("plot_width")), defaults.width);
+  EXPECT_DOUBLE_EQ(std::stod(yaml.at("plot_height")), defaults.height);
+  EXPECT_EQ(std::stoi(yaml.at("plot_points")), defaults.max_points);
+  EXPECT_DOUBLE_EQ(std::stod(yaml.at("ground_truth_tolerance")), defaults.truth_tolerance);
+  EXPECT_EQ(yaml.at("world_frame"), defaults.frame_id);
+  std::ifstream readme(std::string(VISUAL_GYRO_SOURCE_DIR) + "/README.md");
+  std::stringstream text;
+  text << readme.rdbuf();
+  std::ostringstream row;
+  row << "| `plot_window`, `plot_width`, `plot_height`, `plot_points` | " << defaults.window << " s, "
+      << defaults.width << " m, " << defaults.height << " m, " << defaults.max_points << " |";
+  EXPECT_NE(text.str().find(row.str()), std::string::npos) << "README has no row " << row.str();
 }
 
 TEST(CompressedInput, JpegAndPngRoundTrip) {
