@@ -63,13 +63,14 @@ YawPlot::YawPlot(const YawPlotSettings& settings) : settings_(settings) {
 }
 
 void YawPlot::reset() {
+  // The recent truth stays: after a loop or a gap the pose of the new first image may have come
+  // before the image.
   started_ = false;
   estimate_.clear();
   truth_.clear();
   estimate_last_yaw_ = 0.0;
   have_truth_reference_ = false;
   truth_last_yaw_ = 0.0;
-  early_truth_.clear();
 }
 
 void YawPlot::addEstimate(double stamp, const Eigen::Matrix3d& integrated) {
@@ -81,8 +82,7 @@ void YawPlot::addEstimate(double stamp, const Eigen::Matrix3d& integrated) {
     estimate_last_yaw_ = 0.0;
     have_truth_reference_ = false;
     // Ground truth may come before the image: take the reference (and what follows) from there.
-    for (const auto& entry : early_truth_) pushTruth(entry.first, entry.second);
-    early_truth_.clear();
+    for (const auto& entry : recent_truth_) pushTruth(entry.first, entry.second);
   }
   const double t = stamp - t0_;
   if (!estimate_.empty() && t <= estimate_.back().t) return;
@@ -93,13 +93,11 @@ void YawPlot::addEstimate(double stamp, const Eigen::Matrix3d& integrated) {
 }
 
 void YawPlot::addTruth(double stamp, const Eigen::Quaterniond& orientation) {
-  if (!started_) {
-    // Kept until the first image (its stamp picks the reference); a jump back starts over.
-    if (!early_truth_.empty() && stamp < early_truth_.back().first) early_truth_.clear();
-    early_truth_.emplace_back(stamp, orientation);
-    while (early_truth_.size() > 200) early_truth_.pop_front();
-    return;
-  }
+  // Kept for the next start (its first image's stamp picks the reference); a jump back starts over.
+  if (!recent_truth_.empty() && stamp < recent_truth_.back().first) recent_truth_.clear();
+  recent_truth_.emplace_back(stamp, orientation);
+  while (recent_truth_.size() > 200) recent_truth_.pop_front();
+  if (!started_) return;
   pushTruth(stamp, orientation);
   trim();
 }

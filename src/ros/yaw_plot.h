@@ -49,15 +49,16 @@ class YawPlot {
   explicit YawPlot(const YawPlotSettings& settings = YawPlotSettings());
 
   const YawPlotSettings& settings() const { return settings_; }
-  /// Forgets everything (new start: the next estimate is time 0 and yaw 0).
+  /// Starts over: the next estimate is time 0 and yaw 0 (the recent ground truth is kept, since the
+  /// pose of that next image may already have arrived).
   void reset();
 
   /// Adds the integrated camera orientation (camera -> start frame) of the image at `stamp` [s].
   /// The first call sets time 0. Stamps that do not increase are ignored.
   void addEstimate(double stamp, const Eigen::Matrix3d& integrated);
   /// Adds a ground-truth orientation (camera -> world) at `stamp` [s]. Its yaw is measured from the
-  /// pose at the first image's stamp (within truth_tolerance), so both lines start at 0; poses that
-  /// come before the first image are kept until it arrives.
+  /// pose at the first image's stamp (within truth_tolerance), so both lines start at 0; the last
+  /// poses are kept, so one that comes before its image still serves.
   void addTruth(double stamp, const Eigen::Quaterniond& orientation);
 
   /// True when there is anything to draw.
@@ -99,7 +100,7 @@ class YawPlot {
   bool have_truth_reference_ = false;
   Eigen::Quaterniond truth_reference_ = Eigen::Quaterniond::Identity();
   double truth_last_yaw_ = 0.0;
-  std::deque<std::pair<double, Eigen::Quaterniond>> early_truth_;  ///< poses before the first image
+  std::deque<std::pair<double, Eigen::Quaterniond>> recent_truth_;  ///< the last poses, for a (re)start
 };
 
 }  // namespace visual_gyro

@@ -145,6 +145,22 @@ TEST(YawPlot, ScrollsOverLongRuns) {
   EXPECT_TRUE(plot.empty());
 }
 
+TEST(YawPlot, TruthLineRestartsAfterALoop) {
+  YawPlot plot;
+  // A bag played twice: each pose comes just before its image, as make_bag writes them, so the
+  // first pose of the second round arrives before the image that makes the nodelet reset.
+  for (int round = 0; round < 2; ++round) {
+    for (int k = 0; k <= 10; ++k) {
+      const double t = 1.0 + 0.1 * k;
+      plot.addTruth(t, Eigen::Quaterniond(yawRotation(2.0 * k)));
+      if (round == 1 && k == 0) plot.reset();  // the image's stamp jumped back
+      plot.addEstimate(t, yawRotation(2.0 * k));
+    }
+    EXPECT_EQ(plot.estimatePoints(), 11u) << "round " << round;
+    EXPECT_EQ(plot.truthPoints(), 11u) << "round " << round;
+  }
+}
+
 /// "name: value" lines of config/visual_gyro.yaml (comments dropped).
 std::map<std::string, std::string> yamlValues() {
   std::map<std::string, std::string> values;
