@@ -36,9 +36,12 @@ namespace visual_gyro {
 /// Nodelet `visual_gyro/VisualGyroNodelet`.
 ///
 /// Subscribes (lazily: only while an output has a subscriber, or ~publish_tf is on) to `image`
-/// (+ its `camera_info`, unless ~use_camera_info is false) through image_transport, queue 1, and to
-/// `ground_truth` (geometry_msgs/PoseStamped, optional, for the yaw plot). Publishes ~imu,
-/// ~rotation, ~orientation, ~yaw_plot and /diagnostics. Rotation convention: the frame-to-frame
+/// (+ its `camera_info`, unless ~use_camera_info is false) through image_transport, queue
+/// ~queue_size (1), or, for ~image_transport compressed without image_transport's plugin, to
+/// `<image>/compressed` decoded here; and to `ground_truth` (geometry_msgs/PoseStamped, optional,
+/// for the yaw plot). Publishes ~imu, ~rotation (stamped at the midpoint of the two images unless
+/// ~stamp_at_midpoint is false), ~orientation (at the image's stamp), ~yaw_plot (MarkerArray) and
+/// /diagnostics. Rotation convention: the frame-to-frame
 /// rotation R maps current-frame bearings into the previous frame (b_prev = R b_cur), in the
 /// camera's optical frame (x right, y down, z forward) or, when ~output_frame is set, rotated into
 /// that frame with the tf2 transform (R_out = T R T^T, w_out = T w). Units: rad, rad/s, s.
