@@ -199,6 +199,26 @@ TEST(YawPlot, DefaultsAgreeWithYamlAndReadme) {
   EXPECT_NE(text.str().find(row.str()), std::string::npos) << "README has no row " << row.str();
 }
 
+std::string fileText(const std::string& relative) {
+  std::ifstream in(std::string(VISUAL_GYRO_SOURCE_DIR) + "/" + relative);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// The stamp default (chosen by measurement, README "Output stamps") is written in three places.
+TEST(OutputStamps, MidpointDefaultAgreesInCfgYamlAndReadme) {
+  EXPECT_EQ(yamlValues().at("stamp_at_midpoint"), "true");
+  const std::string cfg = fileText("cfg/VisualGyro.cfg");
+  const size_t at = cfg.find("gen.add(\"stamp_at_midpoint\"");
+  ASSERT_NE(at, std::string::npos);
+  const std::string line = cfg.substr(at, cfg.find('\n', at) - at);
+  EXPECT_NE(line.find(", True)"), std::string::npos) << line;
+  EXPECT_NE(fileText("README.md").find("| `stamp_at_midpoint` | true |"), std::string::npos);
+  EXPECT_EQ(yamlValues().at("queue_size"), "1");
+  EXPECT_NE(fileText("README.md").find("| `queue_size` | 1 |"), std::string::npos);
+}
+
 TEST(CompressedInput, JpegAndPngRoundTrip) {
   cv::Mat gray(120, 160, CV_8UC1);
   for (int r = 0; r < gray.rows; ++r)
