@@ -33,7 +33,7 @@ clean:
 	rm -rf build out
 
 # rviz on a replayed bag (real rosbag play, Xvfb), screenshot to out/rviz/replay.png.
-# TRANSPORT=compressed (here and in `make demo`): the bag holds JPEG images the node decodes.
+# TRANSPORT=compressed in `make demo`: the bag holds JPEG images the node decodes.
 TRANSPORT ?= raw
 export TRANSPORT
 .PHONY: rviz-shot

@@ -6,22 +6,18 @@
 # warning or error colour in the Displays panel).
 #
 # Environment: DATA (sequence folder, KITTI or EuRoC layout; default: a rendered drive), FRAMES
-# (at most this many frames; default: all, 60 for the rendered drive), TRANSPORT (raw or
-# compressed: a JPEG bag decoded by the node), RATE (playback rate, default 1), RVIZ_SHOT_OUT
-# (folder; default out/rviz), VG_WS / CUDA (workspace, see env.sh).
+# (at most this many frames; default: all, 60 for the rendered drive), RATE (playback rate,
+# default 1), RVIZ_SHOT_OUT (folder; default out/rviz), VG_WS / CUDA (workspace, see env.sh).
+# The bag holds raw images: rviz's image display cannot show compressed ones without
+# image_transport's compressed plugin, which Debian does not have.
 set -euo pipefail
 source "$(dirname "$0")/env.sh"
 
 OUT_DIR="${RVIZ_SHOT_OUT:-${REPO_DIR}/out/rviz}"
 FRAMES="${FRAMES:-0}"
-TRANSPORT="${TRANSPORT:-raw}"
 RATE="${RATE:-1}"
 log() { echo "[rviz-shot] $*" >&2; }
 
-case "${TRANSPORT}" in
-  raw | compressed) ;;
-  *) log "TRANSPORT=${TRANSPORT}: raw or compressed"; exit 2 ;;
-esac
 for tool in rviz Xvfb import roslaunch; do
   command -v "${tool}" >/dev/null || { log "missing ${tool}: run scripts/install_deps.sh (make deps)"; exit 1; }
 done
@@ -46,7 +42,6 @@ fi
 BAG="${OUT_DIR}/${NAME}.bag"
 bag_args=()
 ((FRAMES > 0)) && bag_args+=(--max-frames "${FRAMES}")
-[[ ${TRANSPORT} == compressed ]] && bag_args+=(--compressed jpeg)
 "${BIN}/make_bag" "${SEQ_DIR}" "${BAG}" "${bag_args[@]}" | tee "${OUT_DIR}/make_bag.log" >&2
 # "stamps A .. B s": B is the last image's stamp.
 LAST_STAMP="$(sed -n 's/.*stamps [0-9.]* \.\. \([0-9.]*\) s.*/\1/p' "${OUT_DIR}/make_bag.log")"
@@ -89,10 +84,10 @@ pids+=($!)
 for _ in $(seq 150); do rostopic list >/dev/null 2>&1 && break; sleep 0.2; done
 rostopic list >/dev/null 2>&1 || { log "the ROS master did not come up:"; tail -20 "${OUT_DIR}/roscore.log" >&2; exit 1; }
 
-log "replaying ${NAME} (${TRANSPORT}) through replay.launch with rviz on display :${display}"
+log "replaying ${NAME} through replay.launch with rviz on display :${display}"
 # Paused until rviz and the node have subscribed (rviz takes seconds to start with software
 # OpenGL); kept alive after the end so that rviz still shows everything for the screenshot.
-roslaunch visual_gyro replay.launch "bag:=${BAG}" rviz:=true "rate:=${RATE}" delay:=0 "transport:=${TRANSPORT}" \
+roslaunch visual_gyro replay.launch "bag:=${BAG}" rviz:=true "rate:=${RATE}" delay:=0 \
   player_args:="--pause --keep-alive" >"${OUT_DIR}/roslaunch.log" 2>&1 &
 pids+=($!)
 input_topic=/camera/camera_info

@@ -66,7 +66,7 @@ class RvizShot(unittest.TestCase):
         ws = workspace()
         self.assertIsNotNone(ws, "no devel space with visual_gyro's make_bag in CMAKE_PREFIX_PATH")
         out = tempfile.mkdtemp(prefix="visual_gyro_rviz_")
-        env = dict(os.environ, VG_WS=ws, RVIZ_SHOT_OUT=out, FRAMES="30", TRANSPORT="raw", RATE="1")
+        env = dict(os.environ, VG_WS=ws, RVIZ_SHOT_OUT=out, FRAMES="30", RATE="1")
         env.pop("DATA", None)
         result = subprocess.run([os.path.join(REPO, "scripts", "rviz_shot.sh")], env=env, stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, universal_newlines=True, timeout=280)
