@@ -31,3 +31,11 @@ bench: build
 
 clean:
 	rm -rf build out
+
+# rviz on a replayed bag (real rosbag play, Xvfb), screenshot to out/rviz/replay.png.
+# TRANSPORT=compressed in `make demo`: the bag holds JPEG images the node decodes.
+TRANSPORT ?= raw
+export TRANSPORT
+.PHONY: rviz-shot
+rviz-shot: build
+	@scripts/rviz_shot.sh

@@ -8,9 +8,10 @@ packages=(
   libcv-bridge-dev libimage-transport-dev libtf2-ros-dev libtf2-geometry-msgs-dev
   librostest-dev python3-rostest librosbag-dev python3-rosbag
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
-  libdiagnostic-updater-dev
+  libdiagnostic-updater-dev libmessage-filters-dev
   ros-message-generation ros-std-msgs ros-sensor-msgs ros-geometry-msgs ros-visualization-msgs
-  python3-sensor-msgs python3-diagnostic-msgs
+  python3-sensor-msgs python3-diagnostic-msgs python3-std-srvs
+  rviz xvfb imagemagick python3-pil
   libopencv-dev libeigen3-dev libopengv-dev libgtest-dev python3-numpy python3-matplotlib
 )
 missing=()

@@ -7,13 +7,15 @@
 # imu_published and latency_ms) computed from what the node published against the bag's ground truth.
 #
 # Environment: DATA (sequence folder; default: rendered drive), METHOD (vote or paper; default vote),
-# BACKEND (auto, cpu, cuda; default auto), VG_WS / CUDA (workspace, see env.sh), ROS_DEMO_OUT
-# (work folder; default out/ros_demo).
+# BACKEND (auto, cpu, cuda; default auto), TRANSPORT (raw, or compressed: the bag holds JPEG images,
+# quality 90, that the node decodes), PARAMS (more node parameters, "name=value ..."), VG_WS / CUDA
+# (workspace, see env.sh), ROS_DEMO_OUT (work folder; default out/ros_demo).
 set -euo pipefail
 source "$(dirname "$0")/env.sh"
 
 METHOD="${METHOD:-vote}"
 BACKEND="${BACKEND:-auto}"
+TRANSPORT="${TRANSPORT:-raw}"
 OUT_DIR="${ROS_DEMO_OUT:-${REPO_DIR}/out/ros_demo}"
 NS=/visual_gyro
 log() { echo "[ros-demo] $*" >&2; }
@@ -25,6 +27,10 @@ case "${METHOD}" in
     log "baselines run only in the evaluation command (make eval DATA=<folder> METHOD=${METHOD})."
     exit 2
     ;;
+esac
+case "${TRANSPORT}" in
+  raw | compressed) ;;
+  *) log "TRANSPORT=${TRANSPORT}: raw or compressed"; exit 2 ;;
 esac
 for tool in visual_gyro_node make_bag play_frames summarize_outputs render_sequence; do
   if [[ ! -x "${BIN}/${tool}" ]]; then
@@ -50,8 +56,10 @@ else
 fi
 BAG="${OUT_DIR}/${NAME}.bag"
 OUTPUTS="${OUT_DIR}/${NAME}_outputs.bag"
+bag_args=()
+[[ ${TRANSPORT} == compressed ]] && bag_args+=(--compressed jpeg)
 log "converting ${SEQ_DIR} to ${BAG}"
-"${BIN}/make_bag" "${SEQ_DIR}" "${BAG}" >&2
+"${BIN}/make_bag" "${SEQ_DIR}" "${BAG}" "${bag_args[@]}" >&2
 
 # --- a private master, cleaned up on exit ---
 PORT="$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
@@ -86,6 +94,10 @@ rostopic list >/dev/null 2>&1 || { log "the ROS master did not come up:"; tail -
 rosparam load "${REPO_DIR}/config/visual_gyro.yaml" "${NS}"
 rosparam set "${NS}/method" "${METHOD}"
 rosparam set "${NS}/backend" "${BACKEND}"
+rosparam set "${NS}/image_transport" "${TRANSPORT}"
+for assignment in ${PARAMS:-}; do
+  rosparam set "${NS}/${assignment%%=*}" "${assignment#*=}"
+done
 "${BIN}/visual_gyro_node" __name:=visual_gyro image:=/camera/image_raw ground_truth:=/ground_truth/pose \
   >"${OUT_DIR}/node.log" 2>&1 &
 pids+=($!)
@@ -99,7 +111,7 @@ record_cmd=(rosbag record)
 recorder=$!
 pids+=("${recorder}")
 
-log "replaying ${NAME} frame by frame through the visual_gyro node (method ${METHOD}, backend ${BACKEND})"
+log "replaying ${NAME} frame by frame through the visual_gyro node (method ${METHOD}, backend ${BACKEND}, ${TRANSPORT} images)"
 if ! "${BIN}/play_frames" "${BAG}" --ns "${NS}" --timeout 60 --wait-for "${NS}/rotation" --wait-for "${NS}/imu" \
   >"${OUT_DIR}/play.log" 2>&1; then
   log "replay failed:"

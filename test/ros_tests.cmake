@@ -26,6 +26,22 @@ if(TARGET tests)
 endif()
 add_rostest(test/ros/hz.test DEPENDENCIES publish_rendered visual_gyro_node visual_gyro_nodelet)
 
+# Yaw plot markers, compressed images, filter-style integration of the rates (no ROS master).
+catkin_add_gtest(test_plot_and_inputs test/ros/test_plot_and_inputs.cpp)
+target_link_libraries(test_plot_and_inputs visual_gyro_ros_tools gtest_main)
+target_compile_definitions(test_plot_and_inputs PRIVATE VISUAL_GYRO_SOURCE_DIR="${VISUAL_GYRO_REPO_DIR}")
+
+# replay.launch with the real rosbag play at rate 1 against the frame-by-frame replay (kitti_turn).
+add_rostest_gtest(test_rosbag_replay test/ros/rosbag_replay.test test/ros/test_rosbag_replay.cpp test/test_support.cpp)
+target_link_libraries(test_rosbag_replay visual_gyro_ros_tools ${catkin_LIBRARIES})
+target_include_directories(test_rosbag_replay PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/test)
+target_compile_definitions(test_rosbag_replay PRIVATE VISUAL_GYRO_DEFAULT_DATA="${VISUAL_GYRO_DEFAULT_DATA}"
+  VISUAL_GYRO_SOURCE_DIR="${VISUAL_GYRO_REPO_DIR}")
+add_dependencies(test_rosbag_replay visual_gyro_nodelet)
+
+# rviz for real: replay.launch with rviz and rosbag play under Xvfb, screenshot checked.
+add_rostest(test/ros/rviz_shot.test DEPENDENCIES visual_gyro_nodelet make_bag render_sequence)
+
 # Every launch file resolves (packages, nodes, args); rviz is in a group that is off by default.
 roslaunch_add_file_check(launch/visual_gyro.launch)
 roslaunch_add_file_check(launch/replay.launch IGNORE_UNSET_ARGS)

@@ -166,6 +166,17 @@ BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& ba
       bag.write(topics.ground_truth, stamp, pose);
       ++summary.poses;
     }
+    info.header.stamp = stamp;
+    info.header.seq = static_cast<uint32_t>(k);
+    if (options.compression != compressed_input::Compression::kNone) {
+      sensor_msgs::CompressedImage compressed =
+          compressed_input::encodeGray(gray, options.compression, options.jpeg_quality);
+      compressed.header = info.header;
+      bag.write(topics.camera_info, stamp, info);
+      bag.write(topics.image + "/compressed", stamp, compressed);
+      ++summary.images;
+      continue;
+    }
     sensor_msgs::Image image;
     image.header.stamp = stamp;
     image.header.frame_id = topics.camera_frame;
@@ -177,8 +188,6 @@ BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& ba
     image.step = static_cast<uint32_t>(gray.cols);
     image.data.resize(static_cast<size_t>(gray.rows) * gray.cols);
     for (int r = 0; r < gray.rows; ++r) std::copy(gray.ptr<uint8_t>(r), gray.ptr<uint8_t>(r) + gray.cols, &image.data[r * gray.cols]);
-    info.header.stamp = stamp;
-    info.header.seq = image.header.seq;
     bag.write(topics.camera_info, stamp, info);
     bag.write(topics.image, stamp, image);
     ++summary.images;
@@ -198,11 +207,15 @@ BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics
   BagContents contents;
   std::map<ros::Time, sensor_msgs::CameraInfoConstPtr> infos;
   std::vector<sensor_msgs::ImageConstPtr> images;
-  rosbag::View view(bag, rosbag::TopicQuery({topics.image, topics.camera_info, topics.gyro,
+  std::vector<sensor_msgs::CompressedImageConstPtr> compressed;
+  const std::string compressed_topic = topics.image + "/compressed";
+  rosbag::View view(bag, rosbag::TopicQuery({topics.image, compressed_topic, topics.camera_info, topics.gyro,
                                              topics.ground_truth, "/tf_static"}));
   for (const rosbag::MessageInstance& m : view) {
     if (m.getTopic() == topics.image) {
       if (auto p = m.instantiate<sensor_msgs::Image>()) images.push_back(p);
+    } else if (m.getTopic() == compressed_topic) {
+      if (auto p = m.instantiate<sensor_msgs::CompressedImage>()) compressed.push_back(p);
     } else if (m.getTopic() == topics.camera_info) {
       if (auto p = m.instantiate<sensor_msgs::CameraInfo>()) infos[p->header.stamp] = p;
     } else if (m.getTopic() == topics.gyro) {
@@ -217,11 +230,17 @@ BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics
   bag.close();
   for (const auto& image : images) {
     auto it = infos.find(image->header.stamp);
-    if (it != infos.end()) contents.frames.push_back({image, it->second});
+    if (it != infos.end()) contents.frames.push_back({image, nullptr, it->second});
+  }
+  if (!images.empty() && !compressed.empty())
+    throw std::runtime_error("bag '" + bag_path + "' has images on both " + topics.image + " and " + compressed_topic);
+  for (const auto& image : compressed) {
+    auto it = infos.find(image->header.stamp);
+    if (it != infos.end()) contents.frames.push_back({nullptr, image, it->second});
   }
   if (contents.frames.empty()) {
-    throw std::runtime_error("bag '" + bag_path + "' has no images on " + topics.image + " with a camera_info on " +
-                             topics.camera_info);
+    throw std::runtime_error("bag '" + bag_path + "' has no images on " + topics.image + " (or " + compressed_topic +
+                             ") with a camera_info on " + topics.camera_info);
   }
   return contents;
 }
@@ -240,7 +259,7 @@ class Truth {
     std::sort(gyro_.begin(), gyro_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     // Rotation of the camera in the gyro frame (imu <- camera); the gyro in camera axes is R^T w.
     for (const auto& t : c.static_transforms) {
-      if (!c.frames.empty() && t.child_frame_id == c.frames.front().image->header.frame_id) {
+      if (!c.frames.empty() && t.child_frame_id == c.frames.front().info->header.frame_id) {
         camera_from_gyro_ = conv::fromMsg(t.transform.rotation).toRotationMatrix().transpose();
       }
     }

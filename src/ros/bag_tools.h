@@ -10,9 +10,11 @@
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 
+#include "compressed_input.h"
 #include "visual_gyro/RotationEstimate.h"
 #include "visual_gyro/sequence.h"
 
@@ -21,7 +23,7 @@ namespace bag_tools {
 
 /// Topic and frame names of a sequence bag.
 struct BagTopics {
-  std::string image = "/camera/image_raw";           ///< sensor_msgs/Image, mono8
+  std::string image = "/camera/image_raw";           ///< sensor_msgs/Image, mono8 (or <image>/compressed)
   std::string camera_info = "/camera/camera_info";   ///< sensor_msgs/CameraInfo, same stamps
   std::string gyro = "/imu/data";                    ///< sensor_msgs/Imu (gyro only), when present
   std::string ground_truth = "/ground_truth/pose";   ///< geometry_msgs/PoseStamped, when present
@@ -37,6 +39,9 @@ struct BagWriteOptions {
   /// stamps must be positive. EuRoC stamps are absolute and kept.
   double kitti_start = 1.0;
   int max_frames = 0;  ///< 0 = all
+  /// kJpeg, kPng: images as sensor_msgs/CompressedImage on <image>/compressed instead of raw.
+  compressed_input::Compression compression = compressed_input::Compression::kNone;
+  int jpeg_quality = compressed_input::kDefaultJpegQuality;  ///< [0..100]
 };
 
 /// What was written.
@@ -54,9 +59,11 @@ struct BagWriteSummary {
 BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& bag_path,
                                  const BagWriteOptions& options);
 
-/// An image with its camera_info (same stamp).
+/// An image (raw, or compressed when the bag holds <image>/compressed) with its camera_info (same
+/// stamp; its header is also the image's).
 struct BagFrame {
-  sensor_msgs::ImageConstPtr image;
+  sensor_msgs::ImageConstPtr image;                 ///< null for a compressed frame
+  sensor_msgs::CompressedImageConstPtr compressed;  ///< null for a raw frame
   sensor_msgs::CameraInfoConstPtr info;
 };
 
@@ -68,8 +75,8 @@ struct BagContents {
   std::vector<geometry_msgs::TransformStamped> static_transforms;
 };
 
-/// Reads a sequence bag (topics as named in `topics`). Images without a camera_info of the same
-/// stamp are dropped. Throws std::runtime_error when the bag cannot be read or holds no images.
+/// Reads a sequence bag (topics as named in `topics`; images raw on `image` or compressed on
+/// `<image>/compressed`). Images without a camera_info of the same stamp are dropped. Throws std::runtime_error when the bag cannot be read or holds no images.
 BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics = BagTopics());
 
 /// Errors of the published estimates against the bag's ground truth (issue 2's JSON keys).

@@ -40,7 +40,20 @@ PlayerReport playFrames(const bag_tools::BagContents& bag, const PlayerOptions& 
   ros::NodeHandle nh;
   nh.setCallbackQueue(&queue);
   image_transport::ImageTransport it(nh);
-  image_transport::CameraPublisher camera_pub = it.advertiseCamera(options.topics.image, 5);
+  // Compressed frames go out as they were recorded, on <image>/compressed beside a camera_info.
+  const bool compressed = !bag.frames.empty() && bag.frames.front().compressed;
+  image_transport::CameraPublisher camera_pub;
+  ros::Publisher compressed_pub, info_pub;
+  if (compressed) {
+    compressed_pub = nh.advertise<sensor_msgs::CompressedImage>(options.topics.image + "/compressed", 5);
+    info_pub = nh.advertise<sensor_msgs::CameraInfo>(options.topics.camera_info, 5);
+  } else {
+    camera_pub = it.advertiseCamera(options.topics.image, 5);
+  }
+  auto imageSubscribers = [&]() {
+    return compressed ? compressed_pub.getNumSubscribers() : camera_pub.getNumSubscribers();
+  };
+  const std::string image_topic = compressed ? compressed_pub.getTopic() : camera_pub.getTopic();
   ros::Publisher pose_pub, gyro_pub, tf_pub;
   if (!bag.poses.empty()) pose_pub = nh.advertise<geometry_msgs::PoseStamped>(options.topics.ground_truth, 100);
   if (!bag.gyro.empty()) gyro_pub = nh.advertise<sensor_msgs::Imu>(options.topics.gyro, 1000);
@@ -67,9 +80,9 @@ PlayerReport playFrames(const bag_tools::BagContents& bag, const PlayerOptions& 
   // The lazy node subscribes to the images once it sees our output subscriptions.
   const ros::WallTime wait_start = ros::WallTime::now();
   auto waited = [&wait_start]() { return (ros::WallTime::now() - wait_start).toSec(); };
-  while (ros::ok() && camera_pub.getNumSubscribers() == 0) {
+  while (ros::ok() && imageSubscribers() == 0) {
     if (waited() > options.subscribe_timeout) {
-      report.error = "nobody subscribed to " + camera_pub.getTopic() + " within " +
+      report.error = "nobody subscribed to " + image_topic + " within " +
                      std::to_string(options.subscribe_timeout) + " s (is the visual_gyro node running, with "
                      "its image input remapped there?)";
       return report;
@@ -92,13 +105,18 @@ PlayerReport playFrames(const bag_tools::BagContents& bag, const PlayerOptions& 
   size_t pose_index = 0, gyro_index = 0;
   for (const bag_tools::BagFrame& frame : bag.frames) {
     if (!ros::ok()) break;
-    const ros::Time stamp = frame.image->header.stamp;
+    const ros::Time stamp = frame.info->header.stamp;
     for (; pose_index < bag.poses.size() && bag.poses[pose_index]->header.stamp <= stamp; ++pose_index)
       pose_pub.publish(bag.poses[pose_index]);
     for (; gyro_index < bag.gyro.size() && bag.gyro[gyro_index]->header.stamp <= stamp; ++gyro_index)
       gyro_pub.publish(bag.gyro[gyro_index]);
     const int before = answers.load();
-    camera_pub.publish(*frame.image, *frame.info);
+    if (frame.compressed) {
+      info_pub.publish(frame.info);
+      compressed_pub.publish(frame.compressed);
+    } else if (frame.image) {
+      camera_pub.publish(*frame.image, *frame.info);
+    }
     ++report.published;
     const ros::WallTime sent = ros::WallTime::now();
     while (ros::ok() && answers.load() == before && (ros::WallTime::now() - sent).toSec() < options.frame_timeout)

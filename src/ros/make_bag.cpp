@@ -18,7 +18,10 @@ void usage() {
                "  --start SECONDS       first stamp of KITTI-layout sequences (default 1.0; ROS stamps must be > 0)\n"
                "  --camera-ns NS        image and camera_info topics NS/image_raw, NS/camera_info (default /camera)\n"
                "  --camera-frame ID     frame_id of the images (default camera_optical)\n"
-               "Topics: NS/image_raw (mono8), NS/camera_info, /imu/data (gyro, when the sequence has one),\n"
+               "  --compressed FORMAT   jpeg or png: sensor_msgs/CompressedImage on NS/image_raw/compressed\n"
+               "                        instead of raw images (as image_transport's compressed plugin records)\n"
+               "  --jpeg-quality Q      JPEG quality 1..100 (default 90, the compressed plugin's)\n"
+               "Topics: NS/image_raw (mono8) or NS/image_raw/compressed, NS/camera_info, /imu/data (gyro, when the sequence has one),\n"
                "/ground_truth/pose (PoseStamped, camera -> first camera, when it has poses), /tf_static.\n");
 }
 
@@ -49,6 +52,13 @@ int main(int argc, char** argv) {
         options.topics.image = ns + "/image_raw";
         options.topics.camera_info = ns + "/camera_info";
       } else if (a == "--camera-frame") options.topics.camera_frame = value();
+      else if (a == "--compressed") {
+        const std::string format = value();
+        if (!visual_gyro::compressed_input::parseCompression(format, &options.compression)) {
+          std::fprintf(stderr, "make_bag: --compressed takes jpeg or png, not '%s'\n", format.c_str());
+          return 2;
+        }
+      } else if (a == "--jpeg-quality") options.jpeg_quality = std::stoi(value());
       else if (a == "-h" || a == "--help") {
         usage();
         return 0;
@@ -62,6 +72,10 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  if (options.jpeg_quality < 1 || options.jpeg_quality > 100) {
+    std::fprintf(stderr, "make_bag: --jpeg-quality must be in 1..100\n");
+    return 2;
+  }
   if (!(options.kitti_start > 0.0)) {
     std::fprintf(stderr, "make_bag: --start must be > 0 (ROS stamps must be positive)\n");
     return 2;
@@ -69,10 +83,16 @@ int main(int argc, char** argv) {
   try {
     const visual_gyro::Sequence sequence = visual_gyro::loadSequence(folder);
     const auto summary = visual_gyro::bag_tools::writeSequenceBag(sequence, bag_path, options);
-    std::printf("make_bag: %s (%s layout) -> %s: %d images on %s (+ %s), %d ground-truth poses, %d gyro samples, "
+    namespace ci = visual_gyro::compressed_input;
+    const std::string image_topic =
+        options.compression == ci::Compression::kNone ? options.topics.image : options.topics.image + "/compressed";
+    const std::string what = options.compression == ci::Compression::kJpeg
+                                 ? " (JPEG, quality " + std::to_string(options.jpeg_quality) + ")"
+                                 : options.compression == ci::Compression::kPng ? " (PNG)" : "";
+    std::printf("make_bag: %s (%s layout) -> %s: %d images%s on %s (+ %s), %d ground-truth poses, %d gyro samples, "
                 "stamps %.3f .. %.3f s\n",
-                sequence.name.c_str(), sequence.layout.c_str(), bag_path.c_str(), summary.images,
-                options.topics.image.c_str(), options.topics.camera_info.c_str(), summary.poses, summary.gyro,
+                sequence.name.c_str(), sequence.layout.c_str(), bag_path.c_str(), summary.images, what.c_str(),
+                image_topic.c_str(), options.topics.camera_info.c_str(), summary.poses, summary.gyro,
                 summary.first_stamp, summary.last_stamp);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "make_bag: %s\n", e.what());

@@ -4,6 +4,7 @@
 #   make_bag              sequence folder -> rosbag (Image + CameraInfo, gyro, ground truth)
 #   play_frames           frame-by-frame replay of such a bag through a running node
 #   summarize_outputs     errors of the recorded outputs against the bag's ground truth (demo JSON)
+#   integrate_imu         the recorded ~imu integrated as a filter does, orientation error over time
 
 set(VISUAL_GYRO_ROS_INCLUDES
   ${CMAKE_CURRENT_SOURCE_DIR}/src/ros
@@ -12,7 +13,9 @@ set(VISUAL_GYRO_ROS_INCLUDES
 
 add_library(visual_gyro_nodelet
   src/ros/visual_gyro_nodelet.cpp
-  src/ros/ros_conversions.cpp)
+  src/ros/ros_conversions.cpp
+  src/ros/yaw_plot.cpp
+  src/ros/compressed_input.cpp)
 target_include_directories(visual_gyro_nodelet PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
 target_link_libraries(visual_gyro_nodelet visual_gyro_core ${catkin_LIBRARIES})
 add_dependencies(visual_gyro_nodelet ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
@@ -29,18 +32,21 @@ add_dependencies(visual_gyro_node visual_gyro_nodelet)
 add_library(visual_gyro_ros_tools STATIC
   src/ros/bag_tools.cpp
   src/ros/frame_player.cpp
-  src/ros/ros_conversions.cpp)
+  src/ros/ros_conversions.cpp
+  src/ros/yaw_plot.cpp
+  src/ros/compressed_input.cpp
+  src/ros/imu_integration.cpp)
 target_include_directories(visual_gyro_ros_tools PUBLIC ${VISUAL_GYRO_ROS_INCLUDES})
 target_link_libraries(visual_gyro_ros_tools PUBLIC visual_gyro_core ${catkin_LIBRARIES})
 add_dependencies(visual_gyro_ros_tools ${PROJECT_NAME}_generate_messages_cpp)
 target_compile_options(visual_gyro_ros_tools PRIVATE -Wall -Wextra)
 
-foreach(tool make_bag play_frames summarize_outputs)
+foreach(tool make_bag play_frames summarize_outputs integrate_imu)
   add_executable(${tool} src/ros/${tool}.cpp)
   target_link_libraries(${tool} visual_gyro_ros_tools)
 endforeach()
 
-install(TARGETS visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs
+install(TARGETS visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs integrate_imu
   ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
   LIBRARY DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
   RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})

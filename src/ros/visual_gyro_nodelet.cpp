@@ -5,9 +5,11 @@
 #include <sstream>
 
 #include <geometry_msgs/TransformStamped.h>
+#include <image_transport/camera_common.h>
 #include <pluginlib/class_list_macros.hpp>
 #include <sensor_msgs/Imu.h>
 
+#include "compressed_input.h"
 #include "ros_conversions.h"
 #include "visual_gyro/RotationEstimate.h"
 
@@ -17,35 +19,10 @@ namespace conv = ros_conversions;
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
-
-/// Yaw [deg] continued from `previous` (no jump of 360 between plot points).
-double unwrapDeg(double yaw_deg, double previous) {
-  while (yaw_deg - previous > 180.0) yaw_deg -= 360.0;
-  while (yaw_deg - previous < -180.0) yaw_deg += 360.0;
-  return yaw_deg;
-}
-
 bool sameCamera(const CameraModel& a, const CameraModel& b) {
   return a.fx() == b.fx() && a.fy() == b.fy() && a.cx() == b.cx() && a.cy() == b.cy() &&
          a.width() == b.width() && a.height() == b.height() &&
          a.distortionModel() == b.distortionModel() && a.distortion() == b.distortion();
-}
-
-visualization_msgs::Marker makeLineStrip(const std::string& ns, int id, float r, float g, float b) {
-  visualization_msgs::Marker m;
-  m.ns = ns;
-  m.id = id;
-  m.type = visualization_msgs::Marker::LINE_STRIP;
-  m.action = visualization_msgs::Marker::ADD;
-  m.pose.orientation.w = 1.0;
-  m.scale.x = 0.02;  // line width [m]
-  m.color.r = r;
-  m.color.g = g;
-  m.color.b = b;
-  m.color.a = 1.0f;
-  m.frame_locked = false;
-  return m;
 }
 
 }  // namespace
@@ -61,16 +38,22 @@ void VisualGyroNodelet::onInit() {
   ros::NodeHandle& pnh = getPrivateNodeHandle();
 
   pnh.param("use_camera_info", use_camera_info_, true);
+  pnh.param<std::string>("image_transport", transport_, "raw");
+  pnh.param("queue_size", queue_size_, 1);
+  queue_size_ = std::max(queue_size_, 1);
   pnh.param<std::string>("backend", backend_request_, "auto");
   pnh.param<std::string>("output_frame", output_frame_, "");
   pnh.param<std::string>("world_frame", world_frame_, "visual_gyro_world");
   pnh.param("publish_tf", publish_tf_, false);
   pnh.param<std::string>("tf_child_frame", tf_child_frame_, "visual_gyro_camera");
-  pnh.param("plot_time_scale", plot_time_scale_, 0.2);
-  pnh.param("plot_yaw_scale", plot_yaw_scale_, 0.05);
-  pnh.param("plot_points", plot_points_, 3000);
-  pnh.param("ground_truth_tolerance", ground_truth_tolerance_, 0.005);
-  plot_points_ = std::max(plot_points_, 2);
+  YawPlotSettings plot;
+  plot.frame_id = world_frame_;
+  pnh.param("plot_window", plot.window, plot.window);
+  pnh.param("plot_width", plot.width, plot.width);
+  pnh.param("plot_height", plot.height, plot.height);
+  pnh.param("plot_points", plot.max_points, plot.max_points);
+  pnh.param("ground_truth_tolerance", plot.truth_tolerance, plot.truth_tolerance);
+  yaw_plot_ = YawPlot(plot);
   pnh.param("fx", param_fx_, 0.0);
   pnh.param("fy", param_fy_, -1.0);
   pnh.param("cx", param_cx_, -1.0);
@@ -79,12 +62,17 @@ void VisualGyroNodelet::onInit() {
   pnh.param("D", param_distortion_, std::vector<double>());
 
   it_.reset(new image_transport::ImageTransport(nh));
+  if (transport_ == "compressed") {
+    const std::vector<std::string> loadable = it_->getLoadableTransports();
+    decode_compressed_ = std::find(loadable.begin(), loadable.end(), "compressed") == loadable.end();
+    NODELET_INFO("visual_gyro: compressed input through %s",
+                 decode_compressed_ ? "the nodelet's own OpenCV decoding (image_transport's compressed plugin is "
+                                      "not installed)"
+                                    : "image_transport's compressed plugin");
+  }
   tf_buffer_.reset(new tf2_ros::Buffer());
   tf_listener_.reset(new tf2_ros::TransformListener(*tf_buffer_, nh));
   if (publish_tf_) tf_broadcaster_.reset(new tf2_ros::TransformBroadcaster());
-
-  plot_estimate_ = makeLineStrip("yaw_estimate", 0, 0.1f, 0.9f, 0.1f);
-  plot_truth_ = makeLineStrip("yaw_ground_truth", 1, 0.9f, 0.2f, 0.1f);
 
   // The server reads the initial values from the private parameters (config/visual_gyro.yaml)
   // and calls reconfigureCb once before returning.
@@ -108,7 +96,7 @@ void VisualGyroNodelet::onInit() {
     imu_pub_ = pnh.advertise<sensor_msgs::Imu>("imu", 10, cb, cb);
     rotation_pub_ = pnh.advertise<visual_gyro::RotationEstimate>("rotation", 10, cb, cb);
     orientation_pub_ = pnh.advertise<geometry_msgs::PoseStamped>("orientation", 10, cb, cb);
-    yaw_plot_pub_ = pnh.advertise<visualization_msgs::Marker>("yaw_plot", 10, cb, cb);
+    yaw_plot_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("yaw_plot", 10, cb, cb);
   }
   connectCb();  // ~publish_tf subscribes at once
   NODELET_INFO("visual_gyro: %s input '%s'%s, backend request '%s', output frame '%s'",
@@ -126,6 +114,10 @@ void VisualGyroNodelet::connectCb() {
   if (!needed && subscribed_) {
     camera_sub_.shutdown();
     image_sub_.shutdown();
+    compressed_sync_.reset();
+    compressed_camera_sub_.unsubscribe();
+    compressed_info_sub_.unsubscribe();
+    compressed_image_sub_.shutdown();
     ground_truth_sub_.shutdown();
     subscribed_ = false;
     {
@@ -136,10 +128,20 @@ void VisualGyroNodelet::connectCb() {
   } else if (needed && !subscribed_) {
     ros::NodeHandle& nh = getNodeHandle();
     image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-    if (use_camera_info_) {
-      camera_sub_ = it_->subscribeCamera("image", 1, &VisualGyroNodelet::cameraCb, this, hints);
+    const std::string compressed_topic = nh.resolveName("image") + "/compressed";
+    if (decode_compressed_ && use_camera_info_) {
+      compressed_camera_sub_.subscribe(nh, compressed_topic, queue_size_);
+      compressed_info_sub_.subscribe(nh, image_transport::getCameraInfoTopic(nh.resolveName("image")), queue_size_);
+      compressed_sync_.reset(new message_filters::TimeSynchronizer<sensor_msgs::CompressedImage, sensor_msgs::CameraInfo>(
+          compressed_camera_sub_, compressed_info_sub_, std::max(queue_size_, 5)));
+      compressed_sync_->registerCallback(boost::bind(&VisualGyroNodelet::compressedCameraCb, this,
+                                                     boost::placeholders::_1, boost::placeholders::_2));
+    } else if (decode_compressed_) {
+      compressed_image_sub_ = nh.subscribe(compressed_topic, queue_size_, &VisualGyroNodelet::compressedImageCb, this);
+    } else if (use_camera_info_) {
+      camera_sub_ = it_->subscribeCamera("image", queue_size_, &VisualGyroNodelet::cameraCb, this, hints);
     } else {
-      image_sub_ = it_->subscribe("image", 1, &VisualGyroNodelet::imageCb, this, hints);
+      image_sub_ = it_->subscribe("image", queue_size_, &VisualGyroNodelet::imageCb, this, hints);
     }
     ground_truth_sub_ = nh.subscribe("ground_truth", 10, &VisualGyroNodelet::groundTruthCb, this);
     subscribed_ = true;
@@ -267,6 +269,28 @@ void VisualGyroNodelet::imageCb(const sensor_msgs::ImageConstPtr& image) {
   processImage(*image, camera, start);
 }
 
+sensor_msgs::ImageConstPtr VisualGyroNodelet::decodeCompressed(const sensor_msgs::CompressedImage& image) {
+  try {
+    return compressed_input::decode(image);
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++window_.images;
+    ++total_images_;
+    NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", e.what());
+    skip("undecodable");
+    return nullptr;
+  }
+}
+
+void VisualGyroNodelet::compressedCameraCb(const sensor_msgs::CompressedImageConstPtr& image,
+                                           const sensor_msgs::CameraInfoConstPtr& info) {
+  if (const sensor_msgs::ImageConstPtr decoded = decodeCompressed(*image)) cameraCb(decoded, info);
+}
+
+void VisualGyroNodelet::compressedImageCb(const sensor_msgs::CompressedImageConstPtr& image) {
+  if (const sensor_msgs::ImageConstPtr decoded = decodeCompressed(*image)) imageCb(decoded);
+}
+
 void VisualGyroNodelet::skipForCamera(const std::string& why, const std::string& reason) {
   NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", why.c_str());
   camera_error_ = why;
@@ -283,11 +307,7 @@ void VisualGyroNodelet::resetState() {
   if (pipeline_) pipeline_->reset();
   have_previous_ = false;
   integrated_.setIdentity();
-  plot_started_ = false;
-  plot_estimate_.points.clear();
-  plot_truth_.points.clear();
-  have_truth_reference_ = false;
-  truth_last_stamp_ = -1.0;
+  yaw_plot_.reset();
   ++resets_;
 }
 
@@ -471,10 +491,11 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     }
   }
 
-  // Integrated orientation: the first frame after a reset is the identity.
+  // Integrated orientation: the first frame after a reset is the identity. It is the camera's
+  // orientation when this image was taken, so it carries the image's stamp (not the midpoint).
   const Eigen::Quaterniond q_out(to_output * integrated_ * to_output.transpose());
   geometry_msgs::PoseStampedPtr pose(new geometry_msgs::PoseStamped);
-  pose->header.stamp = header.stamp;
+  pose->header.stamp = image.header.stamp;
   pose->header.frame_id = world_frame_;
   pose->pose.orientation = conv::toMsg(q_out);
   orientation_pub_.publish(pose);
@@ -485,7 +506,8 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     t.transform.rotation = pose->pose.orientation;
     tf_broadcaster_->sendTransform(t);
   }
-  updateYawPlot(stamp, header);
+  yaw_plot_.addEstimate(stamp, integrated_);
+  publishYawPlot(stamp);
 }
 
 bool VisualGyroNodelet::outputRotation(const std::string& camera_frame, Eigen::Matrix3d* rotation) {
@@ -512,10 +534,7 @@ bool VisualGyroNodelet::outputRotation(const std::string& camera_frame, Eigen::M
       // A different output rotation makes the integrated orientation discontinuous: restart it.
       if (have_cached_tf_) {
         integrated_.setIdentity();
-        plot_started_ = false;
-        plot_estimate_.points.clear();
-        plot_truth_.points.clear();
-        have_truth_reference_ = false;
+        yaw_plot_.reset();
       }
     }
     cached_tf_key_ = key;
@@ -538,75 +557,15 @@ bool VisualGyroNodelet::outputRotation(const std::string& camera_frame, Eigen::M
 void VisualGyroNodelet::groundTruthCb(const geometry_msgs::PoseStampedConstPtr& pose) {
   std::lock_guard<std::mutex> lock(state_mutex_);
   const double stamp = pose->header.stamp.toSec();
-  const Eigen::Quaterniond q = conv::fromMsg(pose->pose.orientation);
-  if (!ground_truth_buffer_.empty() && stamp < ground_truth_buffer_.back().first) ground_truth_buffer_.clear();
-  ground_truth_buffer_.emplace_back(stamp, q);
-  while (ground_truth_buffer_.size() > 200) ground_truth_buffer_.pop_front();
-  if (!plot_started_) return;
-  if (!have_truth_reference_ && std::abs(stamp - plot_t0_) <= ground_truth_tolerance_) {
-    have_truth_reference_ = true;
-    truth_reference_ = q;
-    truth_last_yaw_deg_ = 0.0;
-  }
-  if (have_truth_reference_) {
-    addGroundTruthPoint(stamp, q);
-    if (yaw_plot_pub_.getNumSubscribers() > 0 && plot_truth_.points.size() >= 2) yaw_plot_pub_.publish(plot_truth_);
-  }
+  yaw_plot_.addTruth(stamp, conv::fromMsg(pose->pose.orientation));
+  // Truth that arrives after its image would otherwise wait for the next image to be drawn.
+  if (!yaw_plot_.empty()) publishYawPlot(stamp);
 }
 
-void VisualGyroNodelet::addGroundTruthPoint(double stamp, const Eigen::Quaterniond& orientation) {
-  if (stamp < plot_t0_ - ground_truth_tolerance_ || stamp <= truth_last_stamp_) return;
-  const Eigen::Matrix3d relative =
-      truth_reference_.toRotationMatrix().transpose() * orientation.toRotationMatrix();
-  const double yaw = unwrapDeg(yawPitchRoll(relative)[0] * kRadToDeg, truth_last_yaw_deg_);
-  truth_last_yaw_deg_ = yaw;
-  truth_last_stamp_ = stamp;
-  geometry_msgs::Point p;
-  p.x = (stamp - plot_t0_) * plot_time_scale_;
-  p.y = yaw * plot_yaw_scale_;
-  plot_truth_.points.push_back(p);
-  if (static_cast<int>(plot_truth_.points.size()) > plot_points_) plot_truth_.points.erase(plot_truth_.points.begin());
-  plot_truth_.header.stamp.fromSec(stamp);
-  plot_truth_.header.frame_id = world_frame_;
-}
-
-void VisualGyroNodelet::updateYawPlot(double stamp, const std_msgs::Header& header) {
-  bool truth_from_buffer = false;
-  if (!plot_started_) {
-    plot_started_ = true;
-    plot_t0_ = stamp;
-    plot_last_yaw_deg_ = 0.0;
-    plot_estimate_.points.clear();
-    plot_truth_.points.clear();
-    have_truth_reference_ = false;
-    truth_last_stamp_ = -1.0;
-    // The ground truth may have arrived before the image: take the reference from the buffer.
-    for (const auto& entry : ground_truth_buffer_) {
-      if (!have_truth_reference_ && std::abs(entry.first - stamp) <= ground_truth_tolerance_) {
-        have_truth_reference_ = true;
-        truth_reference_ = entry.second;
-        truth_last_yaw_deg_ = 0.0;
-      }
-      if (have_truth_reference_) {
-        addGroundTruthPoint(entry.first, entry.second);
-        truth_from_buffer = true;
-      }
-    }
-  }
-  const double yaw = unwrapDeg(yawPitchRoll(integrated_)[0] * kRadToDeg, plot_last_yaw_deg_);
-  plot_last_yaw_deg_ = yaw;
-  geometry_msgs::Point p;
-  p.x = (stamp - plot_t0_) * plot_time_scale_;
-  p.y = yaw * plot_yaw_scale_;
-  plot_estimate_.points.push_back(p);
-  if (static_cast<int>(plot_estimate_.points.size()) > plot_points_) plot_estimate_.points.erase(plot_estimate_.points.begin());
-  plot_estimate_.header.stamp = header.stamp;
-  plot_estimate_.header.frame_id = world_frame_;
-  if (yaw_plot_pub_.getNumSubscribers() == 0) return;
-  if (plot_estimate_.points.size() >= 2) yaw_plot_pub_.publish(plot_estimate_);
-  // The ground-truth line is published by groundTruthCb as it grows; here only when the buffer
-  // (truth that came before the image) filled it.
-  if (truth_from_buffer && plot_truth_.points.size() >= 2) yaw_plot_pub_.publish(plot_truth_);
+void VisualGyroNodelet::publishYawPlot(double stamp) {
+  if (yaw_plot_pub_.getNumSubscribers() == 0 || yaw_plot_.empty()) return;
+  visualization_msgs::MarkerArrayPtr markers(new visualization_msgs::MarkerArray(yaw_plot_.markers(stamp)));
+  yaw_plot_pub_.publish(markers);
 }
 
 void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {

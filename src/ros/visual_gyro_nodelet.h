@@ -16,26 +16,32 @@
 #include <dynamic_reconfigure/server.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <image_transport/image_transport.h>
+#include <message_filters/subscriber.h>
+#include <message_filters/time_synchronizer.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
-#include <visualization_msgs/Marker.h>
 
 #include "visual_gyro/VisualGyroConfig.h"
 #include "visual_gyro/visual_gyro.h"
+#include "yaw_plot.h"
 
 namespace visual_gyro {
 
 /// Nodelet `visual_gyro/VisualGyroNodelet`.
 ///
 /// Subscribes (lazily: only while an output has a subscriber, or ~publish_tf is on) to `image`
-/// (+ its `camera_info`, unless ~use_camera_info is false) through image_transport, queue 1, and to
-/// `ground_truth` (geometry_msgs/PoseStamped, optional, for the yaw plot). Publishes ~imu,
-/// ~rotation, ~orientation, ~yaw_plot and /diagnostics. Rotation convention: the frame-to-frame
+/// (+ its `camera_info`, unless ~use_camera_info is false) through image_transport, queue
+/// ~queue_size (1), or, for ~image_transport compressed without image_transport's plugin, to
+/// `<image>/compressed` decoded here; and to `ground_truth` (geometry_msgs/PoseStamped, optional,
+/// for the yaw plot). Publishes ~imu, ~rotation (stamped at the midpoint of the two images unless
+/// ~stamp_at_midpoint is false), ~orientation (at the image's stamp), ~yaw_plot (MarkerArray) and
+/// /diagnostics. Rotation convention: the frame-to-frame
 /// rotation R maps current-frame bearings into the previous frame (b_prev = R b_cur), in the
 /// camera's optical frame (x right, y down, z forward) or, when ~output_frame is set, rotated into
 /// that frame with the tf2 transform (R_out = T R T^T, w_out = T w). Units: rad, rad/s, s.
@@ -52,6 +58,12 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   void connectCb();
   void cameraCb(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
   void imageCb(const sensor_msgs::ImageConstPtr& image);
+  /// `<image>/compressed` decoded here (~image_transport compressed without image_transport's plugin).
+  void compressedCameraCb(const sensor_msgs::CompressedImageConstPtr& image,
+                          const sensor_msgs::CameraInfoConstPtr& info);
+  void compressedImageCb(const sensor_msgs::CompressedImageConstPtr& image);
+  /// Decodes a compressed image; null (frame counted as skipped) when it cannot be decoded.
+  sensor_msgs::ImageConstPtr decodeCompressed(const sensor_msgs::CompressedImage& image);
   void groundTruthCb(const geometry_msgs::PoseStampedConstPtr& pose);
   void reconfigureCb(Config& config, uint32_t level);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
@@ -70,10 +82,8 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   /// Rotation from the camera optical frame into ~output_frame (identity when unset). False when
   /// the transform is not available yet.
   bool outputRotation(const std::string& camera_frame, Eigen::Matrix3d* rotation);
-  /// Adds the yaw of the integrated orientation (and of the ground truth) to the plot and
-  /// publishes it.
-  void updateYawPlot(double stamp, const std_msgs::Header& header);
-  void addGroundTruthPoint(double stamp, const Eigen::Quaterniond& orientation);
+  /// Publishes the yaw plot (when it has a subscriber) as of `stamp` [s].
+  void publishYawPlot(double stamp);
   VisualGyroSettings settingsFromConfig(const Config& config) const;
 
   // --- ROS handles ---
@@ -81,6 +91,12 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   image_transport::CameraSubscriber camera_sub_;
   image_transport::Subscriber image_sub_;
   ros::Subscriber ground_truth_sub_;
+  // Compressed input decoded by the nodelet itself.
+  message_filters::Subscriber<sensor_msgs::CompressedImage> compressed_camera_sub_;
+  message_filters::Subscriber<sensor_msgs::CameraInfo> compressed_info_sub_;
+  std::unique_ptr<message_filters::TimeSynchronizer<sensor_msgs::CompressedImage, sensor_msgs::CameraInfo>>
+      compressed_sync_;
+  ros::Subscriber compressed_image_sub_;
   ros::Publisher imu_pub_, rotation_pub_, orientation_pub_, yaw_plot_pub_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
@@ -96,6 +112,9 @@ class VisualGyroNodelet : public nodelet::Nodelet {
 
   // --- parameters ---
   bool use_camera_info_ = true;
+  std::string transport_ = "raw";   ///< ~image_transport
+  bool decode_compressed_ = false;  ///< compressed requested, image_transport's plugin missing
+  int queue_size_ = 1;              ///< ~queue_size: images waiting while one is processed
   // Intrinsics when use_camera_info_ is false (fy, cx, cy < 0: fx and the image centre).
   double param_fx_ = 0.0, param_fy_ = -1.0, param_cx_ = -1.0, param_cy_ = -1.0;
   std::string param_distortion_model_ = "none";
@@ -105,10 +124,6 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::string world_frame_ = "visual_gyro_world";
   bool publish_tf_ = false;
   std::string tf_child_frame_ = "visual_gyro_camera";
-  double plot_time_scale_ = 0.2;   ///< yaw plot: metres per second of time
-  double plot_yaw_scale_ = 0.05;   ///< yaw plot: metres per degree of yaw
-  int plot_points_ = 3000;
-  double ground_truth_tolerance_ = 0.005;  ///< [s] ground-truth stamp matching an image stamp
   Config config_;
   bool have_config_ = false;
 
@@ -132,15 +147,7 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   bool have_cached_tf_ = false;
 
   // --- yaw plot ---
-  bool plot_started_ = false;
-  double plot_t0_ = 0.0;
-  double plot_last_yaw_deg_ = 0.0;
-  visualization_msgs::Marker plot_estimate_, plot_truth_;
-  std::deque<std::pair<double, Eigen::Quaterniond>> ground_truth_buffer_;
-  bool have_truth_reference_ = false;
-  Eigen::Quaterniond truth_reference_ = Eigen::Quaterniond::Identity();
-  double truth_last_yaw_deg_ = 0.0;
-  double truth_last_stamp_ = -1.0;
+  YawPlot yaw_plot_;
 
   // --- statistics (window = since the last diagnostics update) ---
   struct Window {

@@ -205,7 +205,15 @@ bool outputAdvertised() {
   return false;
 }
 
-const RotationEstimate* findRotation(const std::vector<RotationEstimate>& v, double stamp) {
+/// The estimate whose current image has this stamp (its header carries the midpoint by default).
+const RotationEstimate* findRotation(const std::vector<RotationEstimate>& v, double image_stamp) {
+  for (const auto& m : v)
+    if (std::abs(m.previous_stamp.toSec() + m.dt - image_stamp) < 1e-6) return &m;
+  return nullptr;
+}
+
+/// The estimate published with this header stamp (as its Imu).
+const RotationEstimate* findRotationByHeader(const std::vector<RotationEstimate>& v, double stamp) {
   for (const auto& m : v)
     if (std::abs(m.header.stamp.toSec() - stamp) < 1e-6) return &m;
   return nullptr;
@@ -258,6 +266,7 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
     EXPECT_EQ(m->header.frame_id, expectedFrame());
     EXPECT_NEAR(m->previous_stamp.toSec(), t0 + (k - 1) * dt, 1e-6);
     EXPECT_NEAR(m->dt, dt, 1e-6);
+    EXPECT_NEAR(m->header.stamp.toSec(), t0 + (k - 0.5) * dt, 1e-6) << "default stamps: the images' midpoint";
     EXPECT_NEAR(m->yaw / kDeg, 1.0, 0.15) << "a right turn is a positive yaw";
     EXPECT_NEAR(m->pitch / kDeg, 0.0, 0.15);
     EXPECT_NEAR(m->roll / kDeg, 0.0, 0.15);
@@ -294,7 +303,7 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
 
   ASSERT_EQ(imus.size(), rotations.size()) << "one Imu per valid estimate";
   for (const auto& imu : imus) {
-    const RotationEstimate* m = findRotation(rotations, imu.header.stamp.toSec());
+    const RotationEstimate* m = findRotationByHeader(rotations, imu.header.stamp.toSec());
     ASSERT_NE(m, nullptr) << "Imu stamp " << imu.header.stamp << " matches no RotationEstimate";
     EXPECT_EQ(imu.header.frame_id, expectedFrame());
     EXPECT_EQ(imu.orientation_covariance[0], -1.0) << "REP 145: no orientation";
