@@ -12,6 +12,7 @@ set(VISUAL_GYRO_ROS_INCLUDES
 
 add_library(visual_gyro_nodelet
   src/ros/visual_gyro_nodelet.cpp
+  src/ros/node_diagnostics.cpp
   src/ros/ros_conversions.cpp)
 target_include_directories(visual_gyro_nodelet PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
 target_link_libraries(visual_gyro_nodelet visual_gyro_core ${catkin_LIBRARIES})
