@@ -12,6 +12,11 @@ add_rostest(test/ros/visual_gyro_output_frame.test DEPENDENCIES test_visual_gyro
 # The same with intrinsics from parameters instead of camera_info (plain image subscription).
 add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_ros visual_gyro_node)
 
+# Bad ROS input: plausibility, frozen frames, mono16, calibration, diagnostics and throttled logs.
+add_rostest_gtest(test_reliability_ros test/ros/reliability.test test/ros/test_reliability_ros.cpp)
+target_link_libraries(test_reliability_ros visual_gyro_ros_tools ${catkin_LIBRARIES})
+add_dependencies(test_reliability_ros visual_gyro_node visual_gyro_nodelet)
+
 # Replay of a bag made from ../shared/data/kitti_turn (skipped with a message when absent).
 add_rostest_gtest(test_replay_ros test/ros/replay_kitti.test test/ros/test_replay_ros.cpp test/test_support.cpp)
 target_link_libraries(test_replay_ros visual_gyro_ros_tools ${catkin_LIBRARIES})
