@@ -40,7 +40,8 @@ soak: build
 
 # libFuzzer targets (clang) for the image conversion and the dataset readers, FUZZ_SECONDS each.
 FUZZ_SECONDS ?= 60
-fuzz: deps
+fuzz:
+	@scripts/install_deps.sh fuzz
 	@FUZZ_SECONDS=$(FUZZ_SECONDS) scripts/fuzz.sh
 
 clean:

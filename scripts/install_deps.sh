@@ -13,6 +13,8 @@ packages=(
   python3-sensor-msgs python3-diagnostic-msgs
   libopencv-dev libeigen3-dev libopengv-dev libgtest-dev python3-numpy python3-matplotlib
 )
+# `install_deps.sh fuzz`: also the clang toolchain with libFuzzer (make fuzz).
+if [[ ${1:-} == fuzz ]]; then packages+=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${packages[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)

@@ -12,6 +12,10 @@ add_rostest(test/ros/visual_gyro_output_frame.test DEPENDENCIES test_visual_gyro
 # The same with intrinsics from parameters instead of camera_info (plain image subscription).
 add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_ros visual_gyro_node)
 
+# ROS conversions without a master (mono16 scaling, malformed images, binning).
+catkin_add_gtest(test_ros_conversions test/ros/test_ros_conversions.cpp)
+target_link_libraries(test_ros_conversions visual_gyro_ros_tools ${catkin_LIBRARIES} gtest_main)
+
 # Bad ROS input: plausibility, frozen frames, mono16, calibration, diagnostics and throttled logs.
 add_rostest_gtest(test_reliability_ros test/ros/reliability.test test/ros/test_reliability_ros.cpp)
 target_link_libraries(test_reliability_ros visual_gyro_ros_tools ${catkin_LIBRARIES})

@@ -128,7 +128,8 @@ cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth) {
   // cv::Mat takes int sizes and a size_t step; larger claims are malformed (and would overflow).
   constexpr uint32_t kMaxSide = 1u << 20;
   if (image.width == 0 || image.height == 0 || image.width > kMaxSide || image.height > kMaxSide ||
-      image.step < row_bytes || image.data.size() < static_cast<size_t>(image.step) * image.height) {
+      image.step < row_bytes || image.step % CV_ELEM_SIZE1(type) != 0 ||
+      image.data.size() < static_cast<size_t>(image.step) * image.height) {
     throw std::invalid_argument("malformed image: " + std::to_string(image.width) + "x" +
                                 std::to_string(image.height) + " step " +
                                 std::to_string(image.step) + " with " +

@@ -34,7 +34,7 @@ bool isSupportedEncoding(const std::string& encoding);
 /// camera; larger values saturate), or, when it is 0, the smallest depth (>= 8) covering this
 /// frame's largest value, so 12-bit cameras are not dark. No state survives a frame. Throws
 /// std::invalid_argument for other encodings, a bit depth outside 0 or 8..16, or a malformed
-/// image (step or size inconsistent, a side above 2^20).
+/// image (step or size inconsistent, a 16-bit row step that is odd, a side above 2^20).
 cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth);
 
 /// Row-major copy of a 3x3 matrix into a float64[9] field.

@@ -360,6 +360,22 @@ TEST(ReliabilityRos, MaxRateIsLiveAndNamesTheReason) {
   EXPECT_TRUE(h.rotations().back().valid) << h.rotations().back().status;
 }
 
+TEST(ReliabilityRos, TooFineBinsAreRefusedLive) {
+  Harness& h = *g_harness;
+  h.clear();
+  ASSERT_TRUE(reconfigure("rotation_bin_deg", 1e-12));
+  EXPECT_TRUE(waitFor([&] { return h.logLines("rejected settings") > 0; }, 3.0)) << "no error line";
+  const double t0 = 900.0;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 2u);
+  for (const auto& r : rotations) {
+    EXPECT_TRUE(r.valid) << r.status;
+    EXPECT_NEAR(r.yaw / kDeg, 1.0, 0.15);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
