@@ -411,12 +411,10 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
       have_failed_camera_ = false;
       health_.setCameraProblem("");
     } catch (const std::exception& e) {
-      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: cannot use this camera: %s; frame skipped", e.what());
-      health_.setCameraProblem(e.what());
       failed_camera_ = camera;
       have_failed_camera_ = true;
       have_camera_ = false;
-      skip("camera");
+      skipForCamera(std::string("cannot use this camera: ") + e.what(), "camera");
       return;
     }
   }
