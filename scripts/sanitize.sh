@@ -25,8 +25,9 @@ start=$(date +%s)
 }
 echo "[sanitize] built in $(($(date +%s) - start)) s"
 
-# Reports go to files (one per process), so that a report in a child process whose output a test
-# swallows still fails the run. A distinct exit code keeps them apart from the commands' own 1 and 2.
+# ASan/LSan reports go to files (one per process), so that a report in a child process whose output
+# a test swallows still fails the run; UBSan writes to stderr whatever log_path says. A distinct
+# exit code (86) keeps a sanitizer's exit apart from the commands' own 1 and 2.
 common="log_path=${reports}/report:exitcode=86"
 export ASAN_OPTIONS="${common}:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1"
 export UBSAN_OPTIONS="${common}:print_stacktrace=1:halt_on_error=1"
@@ -88,7 +89,8 @@ else
   skipped=$((skipped + 1))
 fi
 
-# Any sanitizer report fails the run.
+# Any sanitizer report fails the run: ASan/LSan write theirs to files; UBSan's go to stderr, so
+# the log (tests' and nodes' output) and the ROS logs are searched too.
 shopt -s nullglob
 report_files=("${reports}"/report*)
 if ((${#report_files[@]} > 0)); then
@@ -97,6 +99,13 @@ if ((${#report_files[@]} > 0)); then
     grep -m 3 -E "ERROR|runtime error|SUMMARY" "${f}" | sed 's/^/        /'
   done
   failed=$((failed + ${#report_files[@]}))
+fi
+pattern="runtime error:|ERROR: AddressSanitizer|ERROR: LeakSanitizer"
+in_logs=$(grep -r -h -E "${pattern}" "${log}" "${WS}/ros_log" 2>/dev/null | sort -u || true)
+if [[ -n ${in_logs} ]]; then
+  echo "FAILED  sanitizer reports in the logs:"
+  echo "${in_logs}" | head -n 20 | sed 's/^/        /'
+  failed=$((failed + $(echo "${in_logs}" | wc -l)))
 fi
 echo "[sanitize] full log: ${log}; took $(($(date +%s) - start)) s"
 echo "${passed} passed, ${failed} failed, ${skipped} skipped"
