@@ -6,7 +6,7 @@ DATA ?=
 METHOD ?= vote
 export CUDA DATA METHOD
 
-.PHONY: all deps build demo test eval bench clean
+.PHONY: all deps build demo test eval bench sanitize soak fuzz clean
 
 all: build
 
@@ -28,6 +28,21 @@ eval: build
 
 bench: build
 	@scripts/bench.sh
+
+# Own workspace (build/.ws-sanitize, CUDA off) with ASan + UBSan; unit tests, rostests, evaluate.
+sanitize: deps
+	@scripts/sanitize.sh
+
+# Replays a sequence forwards and backwards at 30 Hz through the node for MINUTES (default 10).
+MINUTES ?= 10
+soak: build
+	@MINUTES=$(MINUTES) scripts/soak.sh
+
+# libFuzzer targets (clang) for the image conversion and the dataset readers, FUZZ_SECONDS each.
+FUZZ_SECONDS ?= 60
+fuzz:
+	@scripts/install_deps.sh fuzz
+	@FUZZ_SECONDS=$(FUZZ_SECONDS) scripts/fuzz.sh
 
 clean:
 	rm -rf build out

@@ -14,6 +14,8 @@ packages=(
   rviz xvfb imagemagick python3-pil
   libopencv-dev libeigen3-dev libopengv-dev libgtest-dev python3-numpy python3-matplotlib
 )
+# `install_deps.sh fuzz`: also the clang toolchain with libFuzzer (make fuzz).
+if [[ ${1:-} == fuzz ]]; then packages+=(clang libclang-rt-14-dev); fi
 missing=()
 for p in "${packages[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)

@@ -12,6 +12,22 @@ add_rostest(test/ros/visual_gyro_output_frame.test DEPENDENCIES test_visual_gyro
 # The same with intrinsics from parameters instead of camera_info (plain image subscription).
 add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_ros visual_gyro_node)
 
+# ROS conversions without a master (mono16 scaling, malformed images, binning).
+catkin_add_gtest(test_ros_conversions test/ros/test_ros_conversions.cpp)
+target_link_libraries(test_ros_conversions visual_gyro_ros_tools ${catkin_LIBRARIES} gtest_main)
+
+# Bad ROS input: plausibility, frozen frames, mono16, calibration, diagnostics and throttled logs.
+add_rostest_gtest(test_reliability_ros test/ros/reliability.test test/ros/test_reliability_ros.cpp)
+target_link_libraries(test_reliability_ros visual_gyro_ros_tools ${catkin_LIBRARIES})
+add_dependencies(test_reliability_ros visual_gyro_node visual_gyro_nodelet)
+
+# Soak: 1 minute of 30 Hz replay; memory, descriptors and answers checked (make soak runs it longer).
+add_rostest_gtest(test_soak test/ros/soak.test test/ros/soak.cpp test/test_support.cpp)
+target_link_libraries(test_soak visual_gyro_ros_tools ${catkin_LIBRARIES})
+target_include_directories(test_soak PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/test)
+target_compile_definitions(test_soak PRIVATE VISUAL_GYRO_DEFAULT_DATA="${VISUAL_GYRO_DEFAULT_DATA}")
+add_dependencies(test_soak visual_gyro_node visual_gyro_nodelet)
+
 # Replay of a bag made from ../shared/data/kitti_turn (skipped with a message when absent).
 add_rostest_gtest(test_replay_ros test/ros/replay_kitti.test test/ros/test_replay_ros.cpp test/test_support.cpp)
 target_link_libraries(test_replay_ros visual_gyro_ros_tools ${catkin_LIBRARIES})

@@ -86,18 +86,27 @@ TEST(Pipeline, RejectsBadImagesWithoutTouchingTheState) {
   EXPECT_NE(r.error.find("not after"), std::string::npos) << r.error;
   r = gyro.processFrame(image, 1.5);
   EXPECT_NE(r.error.find("not after"), std::string::npos) << r.error;
-  // The rejected stamps left the state alone: the next frame pairs with the one at 2.0 s.
-  r = gyro.processFrame(image, 2.1);
+  // The rejected stamps left the state alone: the next frame pairs with the one at 2.0 s. (One
+  // pixel differs, so the camera does not read as frozen.)
+  cv::Mat next = image.clone();
+  next.at<uint8_t>(0, 0) ^= 1;
+  r = gyro.processFrame(next, 2.1);
   ASSERT_TRUE(r.has_estimate) << r.error;
   EXPECT_NEAR(r.dt, 0.1, 1e-9);
   EXPECT_LT(r.rotation.rotation_vector.norm(), 0.01 * kDeg);  // same image: no rotation
 }
 
 TEST(Pipeline, TinyOrFeaturelessImagesGiveAnInvalidEstimateNotACrash) {
+  // Smaller than the descriptor patch: said so, not "too few matches".
   vg::VisualGyro tiny(vg::CameraModel(20, 20, 9.5, 9.5, 20, 20), cpuSettings());
   const cv::Mat small(20, 20, CV_8UC1, cv::Scalar(128));
-  EXPECT_EQ(tiny.processFrame(small, 0.0).error, "first frame");
-  vg::FrameResult r = tiny.processFrame(small, 0.1);
+  vg::FrameResult r = tiny.processFrame(small, 0.0);
+  EXPECT_TRUE(r.skipped);
+  EXPECT_NE(r.error.find("smaller than the descriptor patch"), std::string::npos) << r.error;
+  // Large enough but featureless (two different flat images): an invalid estimate.
+  vg::VisualGyro flat(vg::CameraModel(64, 64, 31.5, 31.5, 64, 64), cpuSettings());
+  EXPECT_EQ(flat.processFrame(cv::Mat(64, 64, CV_8UC1, cv::Scalar(128)), 0.0).error, "first frame");
+  r = flat.processFrame(cv::Mat(64, 64, CV_8UC1, cv::Scalar(129)), 0.1);
   EXPECT_FALSE(r.has_estimate);
   EXPECT_NE(r.error.find("too few matches"), std::string::npos) << r.error;
   EXPECT_EQ(r.features, 0);

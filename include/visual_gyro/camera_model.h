@@ -52,4 +52,13 @@ class CameraModel {
   std::vector<double> distortion_;
 };
 
+/// "" when the calibration is plausible for its image, else what is implausible. Checks, beyond
+/// CameraModel::validate(): the principal point lies inside the image; each focal length is
+/// between 0.1 and 100 times the larger image side (fields of view of about 157 deg down to 0.6 deg)
+/// and fy / fx is within [0.25, 4]; the distortion is monotonic over the image: along rays from
+/// the principal point, the distorted radius keeps growing with the angle to the optical axis
+/// until the ray leaves the image (a lens model that folds back would map two directions onto one
+/// pixel and make bearings, hence rates, wrong). Used wherever a camera model enters the pipeline.
+std::string calibrationProblem(const CameraModel& camera);
+
 }  // namespace visual_gyro

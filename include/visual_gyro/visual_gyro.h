@@ -21,6 +21,12 @@ struct FrameResult {
   bool has_estimate = false;
   /// Why the frame gave no (valid) estimate; "" otherwise.
   std::string error;
+  /// The frame was not used and the pipeline's state is untouched: a bad image or stamp, or a time
+  /// step below min_dt. The next frame pairs with the last used one.
+  bool skipped = false;
+  /// The image is bit-identical to the previous one (a frozen camera or driver repeating a frame):
+  /// no estimate, dt is set, and the state is untouched (the previous image keeps its stamp).
+  bool frozen = false;
   RotationResult rotation;          ///< frame-to-frame rotation (previous -> this frame)
   double dt = 0.0;                  ///< this stamp - previous stamp [s]
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< rotation vector / dt [rad/s]
@@ -39,24 +45,48 @@ struct VisualGyroSettings {
   /// false: front end only; FrameResult then holds the matches but no rotation (used to run
   /// baseline estimators on exactly the same matches).
   bool run_estimator = true;
+  /// [s] A time step below this is skipped (the frame is not used): no camera delivers frames
+  /// this close, so such a stamp is wrong and a rate computed over it would be huge.
+  double min_dt = 1e-3;
+  /// [deg/s] An estimated angular rate above this is reported invalid (the full scale of common
+  /// MEMS gyros; far beyond what a camera image survives without motion blur).
+  double max_rate_dps = 2000.0;
 };
+
+/// "" when the pipeline settings of their own (min_dt, max_rate_dps) are usable, else why not.
+/// The front-end and estimator settings are checked by validateFrontEndSettings and validateSettings.
+std::string validatePlausibilitySettings(const VisualGyroSettings& settings);
+
+/// "" when a rotation vector [rad] over dt [s] is a plausible rate for `settings`, else why not
+/// (the rate above max_rate_dps, or dt not positive). Applied to every estimate before it is
+/// reported, by the pipeline and by the evaluation of other methods.
+std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,
+                               const VisualGyroSettings& settings);
+
+/// Smallest image side the front end can describe a keypoint in: the BRIEF patch plus the
+/// detector's border on both sides [px].
+constexpr int kMinImageSide = 2 * (kBriefHalfPatch + 1) + 1;
 
 /// Runs detection, description, matching and rotation estimation frame to frame.
 /// Not thread-safe (one instance per image stream).
 class VisualGyro {
  public:
-  /// Throws std::invalid_argument when the camera or settings are unusable (message says why).
+  /// Throws std::invalid_argument when the camera or settings are unusable (message says why):
+  /// CameraModel::validate() and calibrationProblem() must both pass.
   VisualGyro(const CameraModel& camera, const VisualGyroSettings& settings,
              const WarningSink& warn = WarningSink());
 
   /// Processes the next image (CV_8UC1; stamp in seconds). Never throws for bad images: returns a
-  /// FrameResult with has_estimate = false and error set. A stamp not after the previous one is
-  /// rejected without touching the state.
+  /// FrameResult with has_estimate = false and error set. A stamp not after the previous one, or
+  /// less than min_dt after it, is rejected without touching the state (skipped); an image
+  /// identical to the previous one is flagged frozen; an estimated rate above max_rate_dps is
+  /// invalid.
   FrameResult processFrame(const cv::Mat& gray, double stamp);
 
   /// Forgets the previous frame (after a time jump or a camera change).
   void reset();
-  /// Changes intrinsics (camera_info changed); resets. Throws std::invalid_argument when unusable.
+  /// Changes intrinsics (camera_info changed); resets. Throws std::invalid_argument when unusable
+  /// (validate() or calibrationProblem() names a problem).
   void setCamera(const CameraModel& camera);
   /// Changes settings live; the backend stays.
   void setSettings(const VisualGyroSettings& settings);
@@ -73,6 +103,7 @@ class VisualGyro {
   std::unique_ptr<RotationEstimator> estimator_;
   bool has_previous_ = false;
   double previous_stamp_ = 0.0;
+  cv::Mat previous_gray_;  ///< the last used image (own copy), to detect a frozen camera
   FrameFeatures previous_features_;
   std::vector<Eigen::Vector3d> previous_keypoint_bearings_;
   PriorTracker prior_;

@@ -194,6 +194,65 @@ Eigen::Vector3d CameraModel::bearing(double u, double v) const {
   return Eigen::Vector3d(x, y, 1.0).normalized();
 }
 
+std::string calibrationProblem(const CameraModel& camera) {
+  const std::string invalid = camera.validate();
+  if (!invalid.empty()) return invalid;
+  const double w = camera.width(), h = camera.height();
+  std::ostringstream why;
+  // Pixel centres run from 0 to w - 1; the image's edges are half a pixel further out.
+  if (camera.cx() < -0.5 || camera.cx() > w - 0.5 || camera.cy() < -0.5 || camera.cy() > h - 0.5) {
+    why << "principal point (" << camera.cx() << ", " << camera.cy() << ") lies outside the "
+        << camera.width() << "x" << camera.height() << " image";
+    return why.str();
+  }
+  const double side = std::max(w, h);
+  constexpr double kMinFocalPerSide = 0.1, kMaxFocalPerSide = 100.0;
+  for (const double f : {camera.fx(), camera.fy()}) {
+    if (f < kMinFocalPerSide * side || f > kMaxFocalPerSide * side) {
+      why << "focal length " << f << " px is implausible for a " << camera.width() << "x"
+          << camera.height() << " image (expected " << kMinFocalPerSide * side << " to "
+          << kMaxFocalPerSide * side << " px)";
+      return why.str();
+    }
+  }
+  const double aspect = camera.fy() / camera.fx();
+  if (aspect < 0.25 || aspect > 4.0) {
+    why << "fy / fx = " << aspect << " is implausible (expected 0.25 to 4)";
+    return why.str();
+  }
+  if (camera.distortionModel() == DistortionModel::kNone || allZero(camera.distortion())) return "";
+
+  // March outwards along rays from the optical axis: the projected point's distance from the
+  // principal point (in focal-length units) must grow with the angle until the ray leaves the
+  // image. Rays are parametrised by the angle theta to the optical axis so that fisheye models
+  // (which go beyond 90 deg) are covered too.
+  const bool fisheye = camera.distortionModel() == DistortionModel::kEquidistant;
+  const double max_theta = (fisheye ? 179.0 : 89.0) * M_PI / 180.0;
+  constexpr double kThetaStep = 0.1 * M_PI / 180.0;
+  constexpr int kDirections = 72;
+  for (int d = 0; d < kDirections; ++d) {
+    const double phi = 2.0 * M_PI * d / kDirections;
+    double previous_radius = 0.0;
+    for (double theta = kThetaStep; theta <= max_theta; theta += kThetaStep) {
+      const Eigen::Vector3d ray(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                                std::cos(theta));
+      const Eigen::Vector2d pixel = camera.project(ray);
+      if (!pixel.allFinite()) break;
+      if (pixel.x() < -0.5 || pixel.x() > w - 0.5 || pixel.y() < -0.5 || pixel.y() > h - 0.5) break;
+      const double radius = std::hypot((pixel.x() - camera.cx()) / camera.fx(),
+                                       (pixel.y() - camera.cy()) / camera.fy());
+      if (!(radius > previous_radius)) {
+        why << "distortion coefficients fold the image: the distorted radius stops growing at "
+            << theta * 180.0 / M_PI << " deg from the optical axis, inside the image (pixel "
+            << pixel.x() << ", " << pixel.y() << ")";
+        return why.str();
+      }
+      previous_radius = radius;
+    }
+  }
+  return "";
+}
+
 Eigen::Vector2d CameraModel::project(const Eigen::Vector3d& bearing) const {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (model_ == DistortionModel::kEquidistant && distortion_.size() == 4 && !allZero(distortion_)) {

@@ -117,7 +117,11 @@ hyp::TripleOptions tripleOptions(const EstimatorSettings& s, bool centroid, doub
 }
 
 int binsFor(double window_deg, double bin_deg) {
-  return std::max(1, static_cast<int>(std::ceil(2.0 * window_deg / bin_deg - 1e-9)));
+  const double bins = std::ceil(2.0 * window_deg / bin_deg - 1e-9);
+  // Saturate before converting: a double beyond int's range (a tiny bin) would be undefined
+  // behaviour, and NaN must not pass as a small histogram.
+  if (!(bins < static_cast<double>(std::numeric_limits<int>::max()))) return std::numeric_limits<int>::max();
+  return std::max(1, static_cast<int>(bins));
 }
 
 }  // namespace

@@ -221,7 +221,14 @@ class SimpleYaml {
     if (n < 0) fail(file_, "missing key '" + key + "'");
     std::string text = trim(lines_[n]).substr(key.size() + 1);
     int m = n;
-    while (text.find(']') == std::string::npos && ++m < static_cast<int>(lines_.size())) text += " " + lines_[m];
+    while (text.find(']') == std::string::npos && ++m < static_cast<int>(lines_.size())) {
+      // A continuation line holds numbers only; a new key or list means this one was never closed.
+      if (lines_[m].find_first_of(":[") != std::string::npos)
+        fail(file_, "'" + key + "' list is not closed (missing ']')", n + 1);
+      text += " " + lines_[m];
+    }
+    if (text.find('[') != std::string::npos && text.find(']') == std::string::npos)
+      fail(file_, "'" + key + "' list is not closed (missing ']')", n + 1);
     const size_t open = text.find('['), close = text.find(']');
     if (open == std::string::npos || close == std::string::npos || close < open)
       fail(file_, "'" + key + "' is not a [ ... ] list", n + 1);

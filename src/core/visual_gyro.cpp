@@ -2,6 +2,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <sstream>
 #include <stdexcept>
 
 namespace visual_gyro {
@@ -17,14 +19,62 @@ void checkSettings(const VisualGyroSettings& settings) {
   if (!problem.empty()) throw std::invalid_argument("invalid front-end settings: " + problem);
   problem = validateSettings(settings.estimator);
   if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  problem = validatePlausibilitySettings(settings);
+  if (!problem.empty()) throw std::invalid_argument("invalid settings: " + problem);
 }
 
 void checkCamera(const CameraModel& camera) {
-  const std::string problem = camera.validate();
+  std::string problem = camera.validate();
   if (!problem.empty()) throw std::invalid_argument("invalid camera model: " + problem);
+  problem = calibrationProblem(camera);
+  if (!problem.empty()) throw std::invalid_argument("implausible calibration: " + problem);
+}
+
+/// True when two images have the same size and bytes.
+bool bitIdentical(const cv::Mat& a, const cv::Mat& b) {
+  if (a.empty() || b.empty() || a.size() != b.size() || a.type() != b.type()) return false;
+  const size_t row_bytes = static_cast<size_t>(a.cols) * a.elemSize();
+  for (int r = 0; r < a.rows; ++r) {
+    if (std::memcmp(a.ptr(r), b.ptr(r), row_bytes) != 0) return false;
+  }
+  return true;
+}
+
+/// An invalid result reads as no rotation (the RotationResult convention), with the reason.
+void markInvalid(const std::string& why, RotationResult* rotation) {
+  rotation->valid = false;
+  rotation->error = why;
+  rotation->rotation.setIdentity();
+  rotation->quaternion.setIdentity();
+  rotation->rotation_vector.setZero();
+  rotation->yaw = rotation->pitch = rotation->roll = 0.0;
+}
+
+std::string formatNumber(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
 }
 
 }  // namespace
+
+std::string validatePlausibilitySettings(const VisualGyroSettings& s) {
+  if (!(std::isfinite(s.min_dt) && s.min_dt >= 0.0)) return "min_dt must be >= 0 [s]";
+  if (!(std::isfinite(s.max_rate_dps) && s.max_rate_dps > 0.0)) return "max_rate_dps must be > 0 [deg/s]";
+  return "";
+}
+
+std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,
+                               const VisualGyroSettings& settings) {
+  if (!(dt > 0.0)) return "time step " + formatNumber(dt) + " s is not positive";
+  const double rate_dps = rotation_vector.norm() / dt * 180.0 / M_PI;
+  if (!(rate_dps <= settings.max_rate_dps)) {
+    return "rate " + formatNumber(rate_dps) + " deg/s above max_rate_dps (" +
+           formatNumber(settings.max_rate_dps) + " deg/s) over a " + formatNumber(dt) +
+           " s step: implausible";
+  }
+  return "";
+}
 
 VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& settings,
                        const WarningSink& warn)
@@ -36,6 +86,7 @@ VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& sett
 
 void VisualGyro::reset() {
   has_previous_ = false;
+  previous_gray_ = cv::Mat();
   previous_features_ = FrameFeatures();
   previous_keypoint_bearings_.clear();
   prior_.reset();
@@ -57,6 +108,8 @@ void VisualGyro::setSettings(const VisualGyroSettings& settings) {
 FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   const auto start = std::chrono::steady_clock::now();
   FrameResult result;
+  // Every early return below leaves the state untouched.
+  result.skipped = true;
   if (gray.empty()) {
     result.error = "empty image";
     return result;
@@ -71,6 +124,12 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
                    std::to_string(camera_.height());
     return result;
   }
+  if (gray.cols < kMinImageSide || gray.rows < kMinImageSide) {
+    result.error = "image " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
+                   " is smaller than the descriptor patch (at least " + std::to_string(kMinImageSide) +
+                   "x" + std::to_string(kMinImageSide) + " px)";
+    return result;
+  }
   if (!std::isfinite(stamp)) {
     result.error = "stamp is not finite";
     return result;
@@ -80,6 +139,23 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
                    std::to_string(previous_stamp_) + ")";
     return result;
   }
+  if (has_previous_ && stamp - previous_stamp_ < settings_.min_dt) {
+    result.dt = stamp - previous_stamp_;
+    result.error = "time step " + formatNumber(result.dt) + " s below min_dt (" +
+                   formatNumber(settings_.min_dt) + " s): frame skipped";
+    return result;
+  }
+  if (has_previous_ && bitIdentical(gray, previous_gray_)) {
+    // A driver repeating its last frame with a new stamp would otherwise read as "no rotation"
+    // while the camera may be turning. The previous image keeps its stamp: it is when that
+    // content was captured.
+    result.skipped = false;
+    result.frozen = true;
+    result.dt = stamp - previous_stamp_;
+    result.error = "image identical to the previous one (camera frozen?)";
+    return result;
+  }
+  result.skipped = false;
 
   StageTimes times;
   FrameFeatures features;
@@ -116,10 +192,15 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     if (settings_.run_estimator) {
       result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
                                              prior_.priorFor(dt));
+      if (result.rotation.valid) {
+        const std::string implausible = checkRatePlausible(result.rotation.rotation_vector, dt, settings_);
+        if (!implausible.empty()) markInvalid(implausible, &result.rotation);
+      }
+      // An implausible rotation is no prior for the next frame either.
       prior_.update(result.rotation, dt);
       result.has_estimate = result.rotation.valid;
       result.error = result.rotation.error;
-      if (result.rotation.valid) {
+      if (result.has_estimate) {
         result.angular_velocity = result.rotation.rotation_vector / dt;
         result.angular_velocity_covariance = result.rotation.covariance / (dt * dt);
       }
@@ -134,6 +215,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
 
   has_previous_ = true;
   previous_stamp_ = stamp;
+  gray.copyTo(previous_gray_);
   previous_features_ = std::move(features);
   previous_keypoint_bearings_ = std::move(bearings);
   return result;

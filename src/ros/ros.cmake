@@ -13,6 +13,7 @@ set(VISUAL_GYRO_ROS_INCLUDES
 
 add_library(visual_gyro_nodelet
   src/ros/visual_gyro_nodelet.cpp
+  src/ros/node_diagnostics.cpp
   src/ros/ros_conversions.cpp
   src/ros/yaw_plot.cpp
   src/ros/compressed_input.cpp)

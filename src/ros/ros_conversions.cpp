@@ -41,6 +41,13 @@ bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model
     cy = (cy + 0.5) / by - 0.5;
     width = static_cast<int>(width / bx);
     height = static_cast<int>(height / by);
+    if (width < 1 || height < 1) {
+      *why = "camera_info binning " + std::to_string(info.binning_x) + "x" + std::to_string(info.binning_y) +
+             " leaves a " + std::to_string(width) + "x" + std::to_string(height) + " image of the " +
+             std::to_string(has_roi ? info.roi.width : info.width) + "x" +
+             std::to_string(has_roi ? info.roi.height : info.height) + " calibrated one";
+      return false;
+    }
   }
 
   std::vector<double> d(info.D.begin(), info.D.end());
@@ -103,8 +110,12 @@ bool isSupportedEncoding(const std::string& encoding) {
          encoding == enc::RGB8 || encoding == enc::BGRA8 || encoding == enc::RGBA8;
 }
 
-cv::Mat toGray(const sensor_msgs::Image& image, int* mono16_max) {
+cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth) {
   const std::string& e = image.encoding;
+  if (mono16_bit_depth != 0 && (mono16_bit_depth < 8 || mono16_bit_depth > 16)) {
+    throw std::invalid_argument("mono16 bit depth must be 0 (per frame) or 8..16, got " +
+                                std::to_string(mono16_bit_depth));
+  }
   if (!isSupportedEncoding(e)) {
     throw std::invalid_argument("unsupported image encoding '" + e +
                                 "' (mono8, mono16, bgr8, rgb8, bgra8, rgba8 are)");
@@ -114,7 +125,10 @@ cv::Mat toGray(const sensor_msgs::Image& image, int* mono16_max) {
   else if (e == enc::BGR8 || e == enc::RGB8) type = CV_8UC3;
   else if (e == enc::BGRA8 || e == enc::RGBA8) type = CV_8UC4;
   const size_t row_bytes = static_cast<size_t>(image.width) * CV_ELEM_SIZE(type);
-  if (image.width == 0 || image.height == 0 || image.step < row_bytes ||
+  // cv::Mat takes int sizes and a size_t step; larger claims are malformed (and would overflow).
+  constexpr uint32_t kMaxSide = 1u << 20;
+  if (image.width == 0 || image.height == 0 || image.width > kMaxSide || image.height > kMaxSide ||
+      image.step < row_bytes || image.step % CV_ELEM_SIZE1(type) != 0 ||
       image.data.size() < static_cast<size_t>(image.step) * image.height) {
     throw std::invalid_argument("malformed image: " + std::to_string(image.width) + "x" +
                                 std::to_string(image.height) + " step " +
@@ -136,11 +150,15 @@ cv::Mat toGray(const sensor_msgs::Image& image, int* mono16_max) {
         for (int c = 0; c < host.cols; ++c) p[c] = static_cast<uint16_t>((p[c] >> 8) | (p[c] << 8));
       }
     }
-    double max_value = 0.0;
-    cv::minMaxLoc(host, nullptr, &max_value);
-    *mono16_max = std::max(*mono16_max, static_cast<int>(max_value));
-    int bits = 8;
-    while (bits < 16 && (1 << bits) - 1 < *mono16_max) ++bits;
+    int bits = mono16_bit_depth;
+    if (bits == 0) {
+      // Per frame, with no state: one saturated pixel darkens only its own frame.
+      double max_value = 0.0;
+      cv::minMaxLoc(host, nullptr, &max_value);
+      bits = 8;
+      while (bits < 16 && (1 << bits) - 1 < max_value) ++bits;
+    }
+    // convertTo saturates: values above the declared depth read as white.
     host.convertTo(gray, CV_8U, 255.0 / ((1 << bits) - 1));
   } else if (e == enc::BGR8) {
     cv::cvtColor(raw, gray, cv::COLOR_BGR2GRAY);

@@ -30,11 +30,12 @@ sensor_msgs::CameraInfo cameraInfoFromModel(const CameraModel& model);
 bool isSupportedEncoding(const std::string& encoding);
 
 /// Converts an image of a supported encoding to CV_8UC1 (mono8 is shared, not copied).
-/// mono16 is scaled by 255 / (2^bits - 1), where bits is the smallest bit depth covering
-/// *mono16_max (the largest value seen so far; updated here), so 12-bit cameras are not dark and
-/// the scale stays constant from frame to frame. Throws std::invalid_argument for other encodings
-/// or a malformed image (step or size inconsistent).
-cv::Mat toGray(const sensor_msgs::Image& image, int* mono16_max);
+/// mono16 is scaled by 255 / (2^bits - 1): bits = mono16_bit_depth (8..16, e.g. 12 for a 12-bit
+/// camera; larger values saturate), or, when it is 0, the smallest depth (>= 8) covering this
+/// frame's largest value, so 12-bit cameras are not dark. No state survives a frame. Throws
+/// std::invalid_argument for other encodings, a bit depth outside 0 or 8..16, or a malformed
+/// image (step or size inconsistent, a 16-bit row step that is odd, a side above 2^20).
+cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth);
 
 /// Row-major copy of a 3x3 matrix into a float64[9] field.
 template <typename Array>

@@ -60,6 +60,11 @@ void VisualGyroNodelet::onInit() {
   pnh.param("cy", param_cy_, -1.0);
   pnh.param<std::string>("distortion_model", param_distortion_model_, "none");
   pnh.param("D", param_distortion_, std::vector<double>());
+  pnh.param("mono16_bit_depth", mono16_bit_depth_, 0);
+  if (mono16_bit_depth_ != 0 && (mono16_bit_depth_ < 8 || mono16_bit_depth_ > 16)) {
+    parameter_problem_ = "~mono16_bit_depth must be 0 (per frame) or 8..16, got " + std::to_string(mono16_bit_depth_);
+    NODELET_ERROR("visual_gyro: %s; no output until it is fixed", parameter_problem_.c_str());
+  }
 
   it_.reset(new image_transport::ImageTransport(nh));
   if (transport_ == "compressed") {
@@ -83,9 +88,10 @@ void VisualGyroNodelet::onInit() {
   updater_.reset(new diagnostic_updater::Updater(nh, pnh, getName()));
   updater_->setHardwareID("visual_gyro");
   updater_->add("visual_gyro", this, &VisualGyroNodelet::diagnose);
-  window_start_ = ros::WallTime::now();
+  health_ = NodeDiagnostics(ros::WallTime::now().toSec());
   // A wall timer: diagnostics keep coming at 1 Hz when the (simulated) clock stops.
   diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
+    updateProbe(false);
     updater_->force_update();
   });
 
@@ -119,6 +125,9 @@ void VisualGyroNodelet::connectCb() {
     compressed_info_sub_.unsubscribe();
     compressed_image_sub_.shutdown();
     ground_truth_sub_.shutdown();
+    probe_image_sub_.shutdown();
+    probe_info_sub_.shutdown();
+    probing_ = false;
     subscribed_ = false;
     {
       std::lock_guard<std::mutex> state_lock(state_mutex_);
@@ -145,7 +154,37 @@ void VisualGyroNodelet::connectCb() {
     }
     ground_truth_sub_ = nh.subscribe("ground_truth", 10, &VisualGyroNodelet::groundTruthCb, this);
     subscribed_ = true;
+    // Until the first synchronized pair, count what arrives on each topic.
+    updateProbeLocked(true);
     NODELET_DEBUG("visual_gyro: subscribed to %s", nh.resolveName("image").c_str());
+  }
+}
+
+void VisualGyroNodelet::updateProbe(bool force_start) {
+  std::lock_guard<std::mutex> lock(connect_mutex_);
+  updateProbeLocked(force_start);
+}
+
+void VisualGyroNodelet::updateProbeLocked(bool force_start) {
+  // Probe callbacks only touch atomics: they never wait for the state mutex, so shutting them
+  // down here cannot deadlock with a running camera callback.
+  const bool paired = paired_images_.exchange(0) > 0;
+  const bool wanted = subscribed_ && use_camera_info_ && (force_start || !paired);
+  if (wanted && !probing_) {
+    ros::NodeHandle& nh = getNodeHandle();
+    image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
+    const boost::function<void(const sensor_msgs::ImageConstPtr&)> on_image =
+        [this](const sensor_msgs::ImageConstPtr&) { ++probe_images_; };
+    const boost::function<void(const sensor_msgs::CameraInfoConstPtr&)> on_info =
+        [this](const sensor_msgs::CameraInfoConstPtr&) { ++probe_infos_; };
+    probe_image_sub_ = it_->subscribe("image", 1, on_image, ros::VoidPtr(), hints);
+    probe_info_sub_ = nh.subscribe<sensor_msgs::CameraInfo>(
+        image_transport::getCameraInfoTopic(nh.resolveName("image")), 1, on_info);
+    probing_ = true;
+  } else if (!wanted && probing_) {
+    probe_image_sub_.shutdown();
+    probe_info_sub_.shutdown();
+    probing_ = false;
   }
 }
 
@@ -154,13 +193,21 @@ void VisualGyroNodelet::reconfigureCb(Config& config, uint32_t /*level*/) {
   const VisualGyroSettings settings = settingsFromConfig(config);
   std::string problem = validateFrontEndSettings(settings.front_end);
   if (problem.empty()) problem = validateSettings(settings.estimator);
+  if (problem.empty()) problem = validatePlausibilitySettings(settings);
   if (!problem.empty()) {
-    NODELET_ERROR("visual_gyro: rejected settings (%s); keeping the previous ones", problem.c_str());
-    if (have_config_) config = config_;
+    if (have_config_) {
+      NODELET_ERROR("visual_gyro: rejected settings (%s); keeping the previous ones", problem.c_str());
+      config = config_;
+    } else {
+      // No previous settings to keep: nothing is published until valid ones arrive.
+      NODELET_ERROR("visual_gyro: unusable settings (%s); no output until they are fixed", problem.c_str());
+      health_.setSettingsProblem(problem);
+    }
     return;
   }
   config_ = config;
   have_config_ = true;
+  health_.setSettingsProblem("");
   if (pipeline_) {
     try {
       pipeline_->setSettings(settings);
@@ -202,6 +249,8 @@ VisualGyroSettings VisualGyroNodelet::settingsFromConfig(const Config& c) const 
   e.min_votes = c.min_votes;
   e.min_inlier_ratio = c.min_inlier_ratio;
   e.min_covariance_rad2 = c.min_covariance_rad2;
+  s.min_dt = c.min_dt;
+  s.max_rate_dps = c.max_rate_dps;
   s.run_estimator = true;
   return s;
 }
@@ -237,9 +286,9 @@ bool VisualGyroNodelet::cameraFromParameters(int width, int height, CameraModel*
 void VisualGyroNodelet::cameraCb(const sensor_msgs::ImageConstPtr& image,
                                  const sensor_msgs::CameraInfoConstPtr& info) {
   const ros::WallTime start = ros::WallTime::now();
+  ++paired_images_;
   std::lock_guard<std::mutex> lock(state_mutex_);
-  ++window_.images;
-  ++total_images_;
+  health_.imageIn(image->header.stamp.toSec());
   CameraModel camera;
   std::string why;
   if (!conv::cameraModelFromInfo(*info, &camera, &why)) {
@@ -258,8 +307,7 @@ void VisualGyroNodelet::cameraCb(const sensor_msgs::ImageConstPtr& image,
 void VisualGyroNodelet::imageCb(const sensor_msgs::ImageConstPtr& image) {
   const ros::WallTime start = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(state_mutex_);
-  ++window_.images;
-  ++total_images_;
+  health_.imageIn(image->header.stamp.toSec());
   CameraModel camera;
   std::string why;
   if (!cameraFromParameters(static_cast<int>(image->width), static_cast<int>(image->height), &camera, &why)) {
@@ -274,8 +322,7 @@ sensor_msgs::ImageConstPtr VisualGyroNodelet::decodeCompressed(const sensor_msgs
     return compressed_input::decode(image);
   } catch (const std::exception& e) {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    ++window_.images;
-    ++total_images_;
+    health_.imageIn(image.header.stamp.toSec());
     NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", e.what());
     skip("undecodable");
     return nullptr;
@@ -293,34 +340,36 @@ void VisualGyroNodelet::compressedImageCb(const sensor_msgs::CompressedImageCons
 
 void VisualGyroNodelet::skipForCamera(const std::string& why, const std::string& reason) {
   NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", why.c_str());
-  camera_error_ = why;
+  health_.setCameraProblem(why);
   skip(reason);
 }
 
 void VisualGyroNodelet::skip(const std::string& reason) {
-  ++skipped_[reason];
-  ++window_.skipped;
-  last_skip_reason_ = reason;
+  health_.skipped(reason);
 }
 
-void VisualGyroNodelet::resetState() {
+void VisualGyroNodelet::resetState(const std::string& cause) {
   if (pipeline_) pipeline_->reset();
   have_previous_ = false;
   integrated_.setIdentity();
   yaw_plot_.reset();
-  ++resets_;
+  health_.reset(cause);
 }
 
 void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const CameraModel& camera,
                                      ros::WallTime wall_start) {
   const double stamp = image.header.stamp.toSec();
+  if (!health_.settingsProblem().empty() || !parameter_problem_.empty()) {
+    skip("settings");
+    return;
+  }
   if (image.header.stamp.isZero()) {
     NODELET_ERROR_THROTTLE(10.0, "visual_gyro: image has a zero stamp; frame skipped (stamps must be set)");
     skip("zero_stamp");
     return;
   }
   if (reset_pending_) {
-    resetState();
+    resetState("inputs re-subscribed");
     reset_pending_ = false;
   }
   if (have_previous_) {
@@ -330,25 +379,31 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
       return;
     }
     if (stamp < previous_stamp_) {
-      NODELET_WARN("visual_gyro: time jumped back by %.3f s (%.3f -> %.3f): resetting",
-                   previous_stamp_ - stamp, previous_stamp_, stamp);
-      resetState();
+      NODELET_WARN_THROTTLE(10.0, "visual_gyro: time jumped back by %.3f s (%.3f -> %.3f): resetting",
+                            previous_stamp_ - stamp, previous_stamp_, stamp);
+      resetState("time jumped back");
     } else if (stamp - previous_stamp_ > config_.max_gap) {
-      NODELET_WARN("visual_gyro: gap of %.3f s between images exceeds ~max_gap (%.3f s): resetting",
-                   stamp - previous_stamp_, config_.max_gap);
-      resetState();
+      NODELET_WARN_THROTTLE(10.0, "visual_gyro: gap of %.3f s between images exceeds ~max_gap (%.3f s): resetting",
+                            stamp - previous_stamp_, config_.max_gap);
+      resetState("gap of " + std::to_string(stamp - previous_stamp_) + " s above max_gap " +
+                 std::to_string(config_.max_gap) + " s");
     }
   }
 
   cv::Mat gray;
   try {
-    gray = conv::toGray(image, &mono16_max_);
+    gray = conv::toGray(image, mono16_bit_depth_);
   } catch (const std::exception& e) {
     NODELET_ERROR_THROTTLE(10.0, "visual_gyro: %s; frame skipped", e.what());
     skip(conv::isSupportedEncoding(image.encoding) ? "malformed_image" : "encoding " + image.encoding);
     return;
   }
 
+  // A camera that failed before fails again: say so without rebuilding (the checks cost time).
+  if (have_failed_camera_ && sameCamera(camera, failed_camera_)) {
+    skipForCamera(health_.cameraProblem(), "camera");
+    return;
+  }
   // (Re)build the pipeline when the camera changes; the backend is chosen once.
   if (!pipeline_ || !have_camera_ || !sameCamera(camera, camera_)) {
     try {
@@ -365,18 +420,19 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
                      settings.estimator.method.c_str(), backend_used_.c_str(), backend_request_.c_str());
       } else {
         pipeline_->setCamera(camera);
-        NODELET_INFO("visual_gyro: camera changed (%dx%d fx %.2f); state reset", camera.width(),
-                     camera.height(), camera.fx());
+        NODELET_INFO_THROTTLE(10.0, "visual_gyro: camera changed (%dx%d fx %.2f); state reset", camera.width(),
+                              camera.height(), camera.fx());
       }
-      if (have_previous_) resetState();
+      if (have_previous_) resetState("camera_info changed");
       camera_ = camera;
       have_camera_ = true;
-      camera_error_.clear();
+      have_failed_camera_ = false;
+      health_.setCameraProblem("");
     } catch (const std::exception& e) {
-      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: cannot use this camera: %s; frame skipped", e.what());
-      camera_error_ = e.what();
+      failed_camera_ = camera;
+      have_failed_camera_ = true;
       have_camera_ = false;
-      skip("camera");
+      skipForCamera(std::string("cannot use this camera: ") + e.what(), "camera");
       return;
     }
   }
@@ -384,15 +440,25 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   const bool had_previous = have_previous_;
   const double prev_stamp = previous_stamp_;
   FrameResult result = pipeline_->processFrame(gray, stamp);
-  // Early rejections leave the pipeline's state untouched and its total time at zero.
-  if (!(result.rotation.times.total > 0.0)) {
-    NODELET_ERROR_THROTTLE(10.0, "visual_gyro: frame rejected: %s", result.error.c_str());
-    skip("rejected");
+  // Skipped frames leave the pipeline's state untouched.
+  if (result.skipped) {
+    if (result.dt > 0.0) {  // a step below min_dt
+      NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s", result.error.c_str());
+      skip("min_dt");
+    } else {
+      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: frame rejected: %s", result.error.c_str());
+      skip("rejected");
+    }
     return;
   }
-  have_previous_ = true;
-  previous_stamp_ = stamp;
-  ++window_.processed;
+  if (result.frozen) {
+    NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.error.c_str());
+  } else {
+    // A frozen image leaves the previous one (and its stamp) in the pipeline; so does the node.
+    have_previous_ = true;
+    previous_stamp_ = stamp;
+  }
+  health_.processed();
 
   const std::string& camera_frame = image.header.frame_id;
   Eigen::Matrix3d to_output = Eigen::Matrix3d::Identity();
@@ -472,23 +538,12 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     msg->latency_ms = latency_ms;
     if (imu) {
       imu_pub_.publish(imu);
-      ++window_.imus;
-      ++total_imus_;
+      health_.imuPublished();
     }
     rotation_pub_.publish(msg);
-    ++window_.rotations;
-    ++total_rotations_;
-    window_.latency_sum_ms += latency_ms;
-    window_.latency_max_ms = std::max(window_.latency_max_ms, latency_ms);
-    window_.matches_sum += rot.matches_used;
-    if (rot.hypotheses_accepted > 0)
-      window_.vote_ratio_sum += static_cast<double>(rot.winning_votes) / rot.hypotheses_accepted;
-    ++window_.estimates;
-    if (!valid) {
-      ++window_.invalid;
-      ++total_invalid_;
-      last_invalid_reason_ = msg->status;
-    }
+    const double vote_ratio =
+        rot.hypotheses_accepted > 0 ? static_cast<double>(rot.winning_votes) / rot.hypotheses_accepted : 0.0;
+    health_.estimatePublished(valid, msg->status, latency_ms, rot.matches_used, vote_ratio);
   }
 
   // Integrated orientation: the first frame after a reset is the identity. It is the camera's
@@ -528,7 +583,7 @@ bool VisualGyroNodelet::outputRotation(const std::string& camera_frame, Eigen::M
         tf_buffer_->lookupTransform(output_frame_, camera_frame, ros::Time(0));
     const Eigen::Matrix3d r = conv::fromMsg(t.transform.rotation).toRotationMatrix();
     if (!have_cached_tf_ || key != cached_tf_key_ || !r.isApprox(cached_output_rotation_, 1e-9)) {
-      NODELET_INFO("visual_gyro: rotation %s -> %s is now [%.4f %.4f %.4f %.4f] (x y z w)",
+      NODELET_INFO_THROTTLE(10.0, "visual_gyro: rotation %s -> %s is now [%.4f %.4f %.4f %.4f] (x y z w)",
                    camera_frame.c_str(), output_frame_.c_str(), t.transform.rotation.x,
                    t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w);
       // A different output rotation makes the integrated orientation discontinuous: restart it.
@@ -569,58 +624,18 @@ void VisualGyroNodelet::publishYawPlot(double stamp) {
 }
 
 void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  NodeDiagnostics::Context context;
+  context.subscribed = subscribed_.load();
+  context.image_topic = getNodeHandle().resolveName("image");
+  context.info_topic = image_transport::getCameraInfoTopic(context.image_topic);
   std::lock_guard<std::mutex> lock(state_mutex_);
-  const ros::WallTime now = ros::WallTime::now();
-  const double span = std::max((now - window_start_).toSec(), 1e-3);
-  const Window w = window_;
-  window_ = Window();
-  window_start_ = now;
-
-  const double mean_latency = w.rotations > 0 ? w.latency_sum_ms / w.rotations : 0.0;
-  const double mean_matches = w.estimates > 0 ? w.matches_sum / w.estimates : 0.0;
-  const double mean_vote_ratio = w.estimates > 0 ? w.vote_ratio_sum / w.estimates : 0.0;
-  status.add("Subscribed", subscribed_.load() ? "yes" : "no (no output subscribers)");
-  status.add("Input rate [Hz]", w.images / span);
-  status.add("Output rate ~rotation [Hz]", w.rotations / span);
-  status.add("Output rate ~imu [Hz]", w.imus / span);
-  status.add("Latency mean [ms]", mean_latency);
-  status.add("Latency max [ms]", w.latency_max_ms);
-  status.add("Matches (mean)", mean_matches);
-  status.add("Winning vote ratio (mean)", mean_vote_ratio);
-  status.add("Method", have_config_ ? config_.method : std::string("?"));
-  status.add("Backend requested", backend_request_);
-  status.add("Backend", backend_used_.empty() ? std::string("(not started: no image yet)") : backend_used_);
-  if (!last_warning_.empty()) status.add("Backend warning", last_warning_);
-  status.add("Images received", total_images_);
-  status.add("Estimates published", total_rotations_);
-  status.add("Imu published", total_imus_);
-  status.add("Invalid estimates", total_invalid_);
-  status.add("Resets", resets_);
-  uint64_t skipped_total = 0;
-  for (const auto& entry : skipped_) {
-    status.add("Skipped: " + entry.first, entry.second);
-    skipped_total += entry.second;
-  }
-  status.add("Skipped frames", skipped_total);
-  if (!camera_error_.empty()) status.add("Camera problem", camera_error_);
-
-  if (!camera_error_.empty() && w.processed == 0 && w.images > 0) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "camera unusable: " + camera_error_);
-  } else if (w.skipped > 0) {
-    status.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%llu frame(s) skipped (last: %s)",
-                    static_cast<unsigned long long>(w.skipped), last_skip_reason_.c_str());
-  } else if (w.estimates > 0 && 2 * w.invalid > w.estimates) {
-    status.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%llu of %llu estimates invalid (last: %s)",
-                    static_cast<unsigned long long>(w.invalid), static_cast<unsigned long long>(w.estimates),
-                    last_invalid_reason_.c_str());
-  } else if (!subscribed_) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "idle: no output subscribers");
-  } else if (w.images == 0) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "subscribed, waiting for images");
-  } else {
-    status.summaryf(diagnostic_msgs::DiagnosticStatus::OK, "%.1f Hz, %.1f ms latency, backend %s",
-                    w.rotations / span, mean_latency, backend_used_.c_str());
-  }
+  health_.probedInput(probe_images_.exchange(0), probe_infos_.exchange(0));
+  if (!parameter_problem_.empty()) health_.setSettingsProblem(parameter_problem_);
+  context.method = have_config_ ? config_.method : std::string();
+  context.backend_requested = backend_request_;
+  context.backend_used = backend_used_;
+  context.backend_warning = last_warning_;
+  health_.fill(status, ros::WallTime::now().toSec(), context);
 }
 
 }  // namespace visual_gyro

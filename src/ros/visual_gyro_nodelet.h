@@ -27,6 +27,7 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
+#include "node_diagnostics.h"
 #include "visual_gyro/VisualGyroConfig.h"
 #include "visual_gyro/visual_gyro.h"
 #include "yaw_plot.h"
@@ -67,13 +68,19 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   void groundTruthCb(const geometry_msgs::PoseStampedConstPtr& pose);
   void reconfigureCb(Config& config, uint32_t level);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
+  /// Starts or stops the probe: while subscribed to image + camera_info but no synchronized pair
+  /// arrives, a plain subscription to each counts what does arrive, so the diagnostics can say
+  /// which one is missing. Called by the diagnostics timer (1 Hz) and on subscription.
+  void updateProbe(bool force_start);
+  /// updateProbe() with connect_mutex_ held.
+  void updateProbeLocked(bool force_start);
 
   /// One image with the camera model it was taken with; `wall_start` is when the callback began.
   void processImage(const sensor_msgs::Image& image, const CameraModel& camera, ros::WallTime wall_start);
   /// Camera model from the ~fx... parameters for an image of this size.
   bool cameraFromParameters(int width, int height, CameraModel* camera, std::string* why) const;
-  /// Forgets the previous frame, the integrated orientation and the yaw plot.
-  void resetState();
+  /// Forgets the previous frame, the integrated orientation and the yaw plot; `cause` is counted.
+  void resetState(const std::string& cause);
   /// Counts a skipped frame under `reason`.
   void skip(const std::string& reason);
   /// Skips a frame whose camera model is unusable (`why`): a throttled error, kept for the
@@ -90,6 +97,11 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::unique_ptr<image_transport::ImageTransport> it_;
   image_transport::CameraSubscriber camera_sub_;
   image_transport::Subscriber image_sub_;
+  image_transport::Subscriber probe_image_sub_;  ///< see updateProbe()
+  ros::Subscriber probe_info_sub_;
+  bool probing_ = false;                         ///< guarded by connect_mutex_
+  std::atomic<uint64_t> probe_images_{0}, probe_infos_{0};  ///< since the last diagnostics update
+  std::atomic<uint64_t> paired_images_{0};  ///< synchronized callbacks since the last probe check
   ros::Subscriber ground_truth_sub_;
   // Compressed input decoded by the nodelet itself.
   message_filters::Subscriber<sensor_msgs::CompressedImage> compressed_camera_sub_;
@@ -124,6 +136,7 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::string world_frame_ = "visual_gyro_world";
   bool publish_tf_ = false;
   std::string tf_child_frame_ = "visual_gyro_camera";
+  int mono16_bit_depth_ = 0;  ///< mono16 scaling: 0 = per frame, else the camera's bit depth
   Config config_;
   bool have_config_ = false;
 
@@ -131,14 +144,15 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::unique_ptr<VisualGyro> pipeline_;
   CameraModel camera_;
   bool have_camera_ = false;
-  std::string camera_error_;        ///< why the last camera could not be used
+  CameraModel failed_camera_;       ///< the last camera that could not be used (not retried)
+  bool have_failed_camera_ = false;
   bool have_previous_ = false;      ///< the pipeline holds a previous frame
   double previous_stamp_ = 0.0;
   bool reset_pending_ = false;      ///< reset before the next frame (inputs were re-subscribed)
-  int mono16_max_ = 0;
   Eigen::Matrix3d integrated_ = Eigen::Matrix3d::Identity();  ///< camera frame, since reset
   std::string backend_used_;
   std::string last_warning_;
+  std::string parameter_problem_;  ///< a private parameter read at start is unusable
 
   // --- output frame ---
   std::string cached_tf_key_;
@@ -149,17 +163,8 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   // --- yaw plot ---
   YawPlot yaw_plot_;
 
-  // --- statistics (window = since the last diagnostics update) ---
-  struct Window {
-    uint64_t images = 0, processed = 0, rotations = 0, imus = 0, invalid = 0, skipped = 0;
-    double latency_sum_ms = 0.0, latency_max_ms = 0.0, matches_sum = 0.0, vote_ratio_sum = 0.0;
-    uint64_t estimates = 0;
-  };
-  Window window_;
-  ros::WallTime window_start_;
-  uint64_t total_images_ = 0, total_rotations_ = 0, total_imus_ = 0, total_invalid_ = 0, resets_ = 0;
-  std::map<std::string, uint64_t> skipped_;  ///< reason -> frames
-  std::string last_skip_reason_, last_invalid_reason_;
+  // --- health (counts, causes; /diagnostics) ---
+  NodeDiagnostics health_;
 };
 
 }  // namespace visual_gyro

@@ -266,7 +266,7 @@ Options parseOptions(int argc, char** argv) {
       o.stride = static_cast<int>(s);
     } else if (a == "--hypotheses") {
       const long long h = parseInt(value(), a);
-      if (h <= 0 || h > 100000000) throw UsageError("--hypotheses must be positive");
+      if (h <= 0 || h > 10000000) throw UsageError("--hypotheses must be in 1..10000000, got " + std::to_string(h));
       o.hypotheses = static_cast<int>(h);
     } else if (a == "--seed") {
       const long long s = parseInt(value(), a);
@@ -384,6 +384,9 @@ void applySetting(const std::string& assignment, VisualGyroSettings* s) {
   else if (key == "min_votes") e.min_votes = toInt();
   else if (key == "min_inlier_ratio") e.min_inlier_ratio = toDouble();
   else if (key == "min_covariance_rad2") e.min_covariance_rad2 = toDouble();
+  // Plausibility limits of the pipeline.
+  else if (key == "min_dt") s->min_dt = toDouble();
+  else if (key == "max_rate_dps") s->max_rate_dps = toDouble();
   else throw UsageError("--set: unknown setting '" + key + "'");
 }
 
@@ -405,6 +408,7 @@ struct FramePair {
   bool has_gyro = false;
   Eigen::Vector3d true_omega = Eigen::Vector3d::Zero();  ///< mean gyro rate, camera frame [rad/s]
   double true_translation = kNaN;  ///< camera displacement between the two images [m] (poses)
+  bool frozen = false;  ///< the current image is bit-identical to the previous one (no matches)
 };
 
 /// Ground truth between images a < b: composed frame-to-frame rotations, dt-weighted mean gyro.
@@ -496,6 +500,8 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
   const double angle_per_px = 1.0 / seq.camera.fx();
   bool have_previous = false;
   size_t previous_index = 0;
+  size_t skipped_min_dt = 0;
+  std::string first_skip;
   // A live counter only on a terminal; logs get one line at the end.
   const bool progress = !o.quiet && isatty(fileno(stderr));
   for (size_t k = 0; k < seq.image_paths.size(); k += o.stride) {
@@ -503,6 +509,11 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
     const cv::Mat gray = cv::imread(seq.image_paths[k], cv::IMREAD_GRAYSCALE);
     if (gray.empty()) throw DataError("cannot read image " + seq.image_paths[k]);
     FrameResult r = gyro.processFrame(gray, seq.stamps[k]);
+    if (have_previous && r.skipped && r.dt > 0.0) {
+      // A time step below min_dt: the pipeline skipped the frame, the next pairs with the previous.
+      if (skipped_min_dt++ == 0) first_skip = "image " + seq.image_paths[k] + ": " + r.error;
+      continue;
+    }
     if (!have_previous) {
       have_previous = true;
       previous_index = k;
@@ -511,7 +522,7 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
       }
       continue;
     }
-    if (r.previous_bearings.empty() && !r.error.empty()) {
+    if (r.previous_bearings.empty() && !r.error.empty() && !r.frozen) {
       // Image-level problems (size mismatch, bad stamp) are data errors, not estimator failures.
       throw DataError("image " + seq.image_paths[k] + ": " + r.error);
     }
@@ -523,6 +534,7 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
     p.current = std::move(r.current_bearings);
     p.matches_found = static_cast<int>(p.previous.size());
     p.front_end = r.rotation.times;
+    p.frozen = r.frozen;
     fillTruth(seq, &p);
     const uint64_t seed = o.has_seed ? o.seed : settings.estimator.seed;
     subsample(o.max_matches, seed, &p);
@@ -532,9 +544,18 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
                    pairs.size() + 1, previous_index, k, p.previous.size());
     }
     pairs.push_back(std::move(p));
-    previous_index = k;
+    // A frozen image left the pipeline's previous frame in place; so does this loop.
+    if (!r.frozen) previous_index = k;
   }
   if (progress) std::fprintf(stderr, "\n");
+  if (skipped_min_dt > 0) {
+    std::fprintf(stderr, "[evaluate] %s: %zu frame(s) skipped, time step below min_dt %g s (first: %s)\n",
+                 seq.name.c_str(), skipped_min_dt, settings.min_dt, first_skip.c_str());
+    if (pairs.empty()) {
+      throw DataError(seq.name + ": no usable frame pairs: every time step is below min_dt (" +
+                      std::to_string(skipped_min_dt) + " frames skipped; first: " + first_skip + ")");
+    }
+  }
   if (!o.quiet && !pairs.empty()) {
     double matches = 0;
     for (const FramePair& p : pairs) matches += p.previous.size();
@@ -668,6 +689,38 @@ class BaselineRunner : public MethodRunner {
   std::string name_;
   BaselineSettings settings_;
   Eigen::Matrix3d initial_ = Eigen::Matrix3d::Identity();
+};
+
+/// Applies the pipeline's plausibility rules to another method: no estimate on a frozen image, and
+/// a rate above max_rate_dps is invalid, exactly as VisualGyro reports them.
+class PlausibilityRunner : public MethodRunner {
+ public:
+  PlausibilityRunner(std::unique_ptr<MethodRunner> inner, const VisualGyroSettings& settings)
+      : inner_(std::move(inner)), settings_(settings) {}
+
+  MethodEstimate run(const FramePair& pair) override {
+    if (pair.frozen) {
+      MethodEstimate out;
+      out.error = "image identical to the previous one (camera frozen?)";
+      return out;
+    }
+    MethodEstimate out = inner_->run(pair);
+    if (out.valid) {
+      const std::string implausible = checkRatePlausible(out.rotation_vector, pair.dt, settings_);
+      if (!implausible.empty()) {
+        out.valid = false;
+        out.error = implausible;
+        out.rotation.setIdentity();
+        out.rotation_vector.setZero();
+      }
+    }
+    return out;
+  }
+  std::string backend() const override { return inner_->backend(); }
+
+ private:
+  std::unique_ptr<MethodRunner> inner_;
+  VisualGyroSettings settings_;
 };
 
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const EstimatorSettings& estimator,
@@ -1062,6 +1115,8 @@ int run(int argc, char** argv) {
   if (!problem.empty()) throw UsageError("front-end settings: " + problem);
   problem = validateSettings(settings.estimator);
   if (!problem.empty()) throw UsageError("estimator settings: " + problem);
+  problem = validatePlausibilitySettings(settings);
+  if (!problem.empty()) throw UsageError("settings: " + problem);
 
   Sequence seq;
   try {
@@ -1073,6 +1128,8 @@ int run(int argc, char** argv) {
   if (seq.stamps.size() != seq.image_paths.size()) throw DataError(o.folder + ": stamps and images differ in number");
   problem = seq.camera.validate();
   if (!problem.empty()) throw DataError(o.folder + ": camera model: " + problem);
+  problem = calibrationProblem(seq.camera);
+  if (!problem.empty()) throw DataError(o.folder + ": implausible calibration: " + problem);
 
   std::vector<FramePair> pairs;
   try {
@@ -1094,7 +1151,8 @@ int run(int argc, char** argv) {
 
   std::vector<MethodSummary> summaries;
   for (const std::string& method : o.methods) {
-    std::unique_ptr<MethodRunner> runner = makeRunner(method, settings.estimator, base);
+    std::unique_ptr<MethodRunner> runner =
+        std::make_unique<PlausibilityRunner>(makeRunner(method, settings.estimator, base), settings);
     summaries.push_back(evaluateMethod(method, runner.get(), pairs));
   }
   if (!o.csv.empty()) writeCsv(o.csv, summaries);

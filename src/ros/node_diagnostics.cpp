@@ -1,0 +1,153 @@
+#include "node_diagnostics.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <diagnostic_msgs/DiagnosticStatus.h>
+
+namespace visual_gyro {
+
+namespace {
+
+using Level = diagnostic_msgs::DiagnosticStatus;
+
+unsigned long long ull(uint64_t v) { return static_cast<unsigned long long>(v); }
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + mid, values.end());
+  return values[mid];
+}
+
+}  // namespace
+
+void NodeDiagnostics::imageIn(double stamp) {
+  ++window_.images;
+  ++total_images_;
+  // The expected rate comes from the stamps, so that it does not depend on how fast images are
+  // delivered; only forward steps count (a jump back is a reset, not a frame interval).
+  if (have_last_stamp_ && stamp > last_stamp_) window_.stamp_steps.push_back(stamp - last_stamp_);
+  have_last_stamp_ = true;
+  last_stamp_ = stamp;
+}
+
+void NodeDiagnostics::probedInput(uint64_t images, uint64_t infos) {
+  window_.probed_images += images;
+  window_.infos += infos;
+}
+
+void NodeDiagnostics::skipped(const std::string& reason) {
+  ++skipped_[reason];
+  ++window_.skipped;
+  last_skip_reason_ = reason;
+}
+
+void NodeDiagnostics::reset(const std::string& cause) {
+  ++window_.resets;
+  ++total_resets_;
+  last_reset_cause_ = cause;
+}
+
+void NodeDiagnostics::estimatePublished(bool valid, const std::string& status, double latency_ms,
+                                        int matches, double vote_ratio) {
+  ++window_.estimates;
+  ++total_estimates_;
+  window_.latency_sum_ms += latency_ms;
+  window_.latency_max_ms = std::max(window_.latency_max_ms, latency_ms);
+  window_.matches_sum += matches;
+  window_.vote_ratio_sum += vote_ratio;
+  if (!valid) {
+    ++window_.invalid;
+    ++total_invalid_;
+    last_invalid_reason_ = status;
+  }
+}
+
+void NodeDiagnostics::imuPublished() {
+  ++window_.imus;
+  ++total_imus_;
+}
+
+void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, double now,
+                           const Context& context) {
+  const double span = std::max(now - window_start_, 1e-3);
+  Window w = window_;
+  // The probe sees paired images too (it runs until pairs come); the surplus had no camera_info.
+  w.unpaired_images = w.probed_images > w.images ? w.probed_images - w.images : 0;
+  window_ = Window();
+  window_start_ = now;
+
+  const double step = median(w.stamp_steps);
+  const double expected_hz = step > 0.0 ? 1.0 / step : 0.0;
+  const double images_hz = w.images / span;
+  const double estimates_hz = w.estimates / span;
+  const double valid_hz = (w.estimates - w.invalid) / span;
+  const double mean_latency = w.estimates > 0 ? w.latency_sum_ms / w.estimates : 0.0;
+
+  status.add("Subscribed", context.subscribed ? "yes" : "no (no output subscribers)");
+  status.add("Expected rate [Hz] (image stamps)", expected_hz);
+  status.add("Images in [Hz]", images_hz);
+  status.add("Estimates out [Hz]", estimates_hz);
+  status.add("Valid estimates out [Hz]", valid_hz);
+  status.add("Imu out [Hz]", w.imus / span);
+  status.add("Images without camera_info [Hz]", w.unpaired_images / span);
+  status.add("Latency mean [ms]", mean_latency);
+  status.add("Latency max [ms]", w.latency_max_ms);
+  status.add("Matches (mean)", w.estimates > 0 ? w.matches_sum / w.estimates : 0.0);
+  status.add("Winning vote ratio (mean)", w.estimates > 0 ? w.vote_ratio_sum / w.estimates : 0.0);
+  status.add("Method", context.method.empty() ? std::string("?") : context.method);
+  status.add("Backend requested", context.backend_requested);
+  status.add("Backend", context.backend_used.empty() ? std::string("(not started: no image yet)")
+                                                     : context.backend_used);
+  if (!context.backend_warning.empty()) status.add("Backend warning", context.backend_warning);
+  status.add("Images received", total_images_);
+  status.add("Estimates published", total_estimates_);
+  status.add("Imu published", total_imus_);
+  status.add("Invalid estimates", total_invalid_);
+  status.add("Resets", total_resets_);
+  if (!last_reset_cause_.empty()) status.add("Last reset", last_reset_cause_);
+  uint64_t skipped_total = 0;
+  for (const auto& entry : skipped_) {
+    status.add("Skipped: " + entry.first, entry.second);
+    skipped_total += entry.second;
+  }
+  status.add("Skipped frames", skipped_total);
+  if (!camera_problem_.empty()) status.add("Camera problem", camera_problem_);
+  if (!settings_problem_.empty()) status.add("Settings problem", settings_problem_);
+
+  // The first matching line is the summary, most severe first.
+  const bool input = w.images > 0 || w.unpaired_images > 0;
+  if (!settings_problem_.empty()) {
+    status.summary(Level::ERROR, "settings unusable, no output: " + settings_problem_);
+  } else if (!camera_problem_.empty() && w.processed == 0 && input) {
+    status.summary(Level::ERROR, "camera unusable, no output: " + camera_problem_);
+  } else if (w.unpaired_images > 0 && w.images == 0) {
+    status.summaryf(Level::WARN, "%llu image(s) on %s but %s, no output",
+                    ull(w.unpaired_images), context.image_topic.c_str(),
+                    w.infos == 0 ? ("no camera_info on " + context.info_topic).c_str()
+                                 : "no camera_info with the same stamp (stamps differ)");
+  } else if (w.resets >= 2 && w.resets * 2 >= w.images) {
+    status.summaryf(Level::WARN, "reset storm: %llu resets for %llu images (last: %s), %.1f Hz out",
+                    ull(w.resets), ull(w.images), last_reset_cause_.c_str(), valid_hz);
+  } else if (w.skipped > 0) {
+    status.summaryf(Level::WARN, "%llu of %llu frame(s) skipped (last: %s), %.1f Hz out",
+                    ull(w.skipped), ull(w.images), last_skip_reason_.c_str(), valid_hz);
+  } else if (w.estimates > 0 && 2 * w.invalid > w.estimates) {
+    status.summaryf(Level::WARN, "%llu of %llu estimates invalid (last: %s)", ull(w.invalid),
+                    ull(w.estimates), last_invalid_reason_.c_str());
+  } else if (w.images >= 3 && 2 * w.estimates < w.images) {
+    // Every frame after the first gives an estimate; fewer means frames are lost in the node.
+    status.summaryf(Level::WARN, "%.1f Hz of images in but only %.1f Hz of estimates out",
+                    images_hz, estimates_hz);
+  } else if (!context.subscribed) {
+    status.summary(Level::OK, "idle: no output subscribers");
+  } else if (!input) {
+    status.summary(Level::OK, "subscribed, waiting for images");
+  } else {
+    status.summaryf(Level::OK, "%.1f Hz out (expected %.1f Hz), %.1f ms latency, backend %s",
+                    valid_hz, expected_hz, mean_latency, context.backend_used.c_str());
+  }
+}
+
+}  // namespace visual_gyro

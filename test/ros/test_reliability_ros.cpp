@@ -1,0 +1,392 @@
+// Reliability of the node against bad ROS input: what it publishes (never a valid Imu from an
+// implausible frame) and what /diagnostics and /rosout say. Publishes image and camera_info on
+// separate publishers so that either can be missing or wrong. The tests share one node and run in
+// order; each starts its stamps far after the previous test's (the node resets across the gap).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <dynamic_reconfigure/Reconfigure.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <opencv2/core.hpp>
+#include <ros/ros.h>
+#include <rosgraph_msgs/Log.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/image_encodings.h>
+
+#include "visual_gyro/RotationEstimate.h"
+#include "visual_gyro/renderer.h"
+
+namespace {
+
+using visual_gyro::RotationEstimate;
+namespace enc = sensor_msgs::image_encodings;
+constexpr double kDeg = M_PI / 180.0;
+const char* kNs = "/visual_gyro";
+
+bool waitFor(const std::function<bool()>& pred, double timeout) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (pred()) return true;
+    ros::WallDuration(0.005).sleep();
+  }
+  return pred();
+}
+
+visual_gyro::RenderSettings scene() {
+  visual_gyro::RenderSettings s;
+  s.preset = "handheld";
+  s.setCentredCamera(320, 240, 250.0);
+  s.noise_sigma = 1.0;
+  return s;
+}
+
+/// Views of a right turn, 1 degree per frame.
+const std::vector<cv::Mat>& turn() {
+  static std::vector<cv::Mat> images;
+  if (images.empty()) {
+    for (int k = 0; k < 12; ++k) {
+      images.push_back(visual_gyro::renderView(
+          scene(), Eigen::AngleAxisd(k * kDeg, Eigen::Vector3d::UnitY()).toRotationMatrix(), Eigen::Vector3d::Zero()));
+    }
+  }
+  return images;
+}
+
+class Harness {
+ public:
+  Harness() {
+    image_pub_ = nh_.advertise<sensor_msgs::Image>("/rel_camera/image_raw", 5);
+    info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("/rel_camera/camera_info", 5);
+    const auto s = scene();
+    info_.width = s.width;
+    info_.height = s.height;
+    info_.distortion_model = "plumb_bob";
+    info_.D.assign(5, 0.0);
+    info_.K = {s.fx, 0, s.cx, 0, s.fy, s.cy, 0, 0, 1};
+    info_.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    info_.P = {s.fx, 0, s.cx, 0, 0, s.fy, s.cy, 0, 0, 0, 1, 0};
+    imu_sub_ = nh_.subscribe(std::string(kNs) + "/imu", 100, &Harness::imuCb, this);
+    rotation_sub_ = nh_.subscribe(std::string(kNs) + "/rotation", 100, &Harness::rotationCb, this);
+    orientation_sub_ = nh_.subscribe(std::string(kNs) + "/orientation", 100, &Harness::orientationCb, this);
+    diag_sub_ = nh_.subscribe("/diagnostics", 100, &Harness::diagCb, this);
+    rosout_sub_ = nh_.subscribe("/rosout", 1000, &Harness::rosoutCb, this);
+  }
+
+  sensor_msgs::CameraInfo info() const { return info_; }
+
+  static sensor_msgs::Image imageMsg(const cv::Mat& image, const std::string& encoding, double stamp) {
+    sensor_msgs::Image msg;
+    msg.header.stamp.fromSec(stamp);
+    msg.header.frame_id = "rel_camera_optical";
+    msg.height = static_cast<uint32_t>(image.rows);
+    msg.width = static_cast<uint32_t>(image.cols);
+    msg.encoding = encoding;
+    msg.step = static_cast<uint32_t>(image.cols * image.elemSize());
+    msg.data.resize(static_cast<size_t>(msg.step) * image.rows);
+    for (int r = 0; r < image.rows; ++r)
+      std::memcpy(&msg.data[static_cast<size_t>(r) * msg.step], image.ptr(r), msg.step);
+    return msg;
+  }
+
+  /// Publishes an image (and, when `with_info`, the camera_info of the same stamp); true when the
+  /// node answered with an ~orientation within `timeout` seconds.
+  bool send(const cv::Mat& image, double stamp, double timeout = 5.0, const std::string& encoding = enc::MONO8,
+            bool with_info = true, const sensor_msgs::CameraInfo* info_override = nullptr) {
+    const sensor_msgs::Image msg = imageMsg(image, encoding, stamp);
+    sensor_msgs::CameraInfo info = info_override ? *info_override : info_;
+    info.header = msg.header;
+    const int before = orientations();
+    if (with_info) info_pub_.publish(info);
+    image_pub_.publish(msg);
+    return waitFor([&] { return orientations() > before; }, timeout);
+  }
+
+  bool connected(double timeout = 15.0) {
+    return waitFor([&] { return image_pub_.getNumSubscribers() > 0 && info_pub_.getNumSubscribers() > 0; },
+                   timeout);
+  }
+
+  int orientations() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return orientation_count_;
+  }
+  std::vector<RotationEstimate> rotations() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return rotation_msgs_;
+  }
+  std::vector<sensor_msgs::Imu> imus() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return imu_msgs_;
+  }
+  void clear() {
+    std::lock_guard<std::mutex> l(mutex_);
+    rotation_msgs_.clear();
+    imu_msgs_.clear();
+    diag_.clear();
+    logs_.clear();
+  }
+  /// Diagnostics statuses of the node received since the last clear(): (level, message).
+  std::vector<std::pair<int, std::string>> diagnostics() {
+    std::lock_guard<std::mutex> l(mutex_);
+    return diag_;
+  }
+  /// Waits until a status of `level` whose message contains `needle` arrives.
+  bool waitDiagnostic(int level, const std::string& needle, double timeout) {
+    return waitFor(
+        [&] {
+          for (const auto& d : diagnostics())
+            if (d.first == level && d.second.find(needle) != std::string::npos) return true;
+          return false;
+        },
+        timeout);
+  }
+  /// Log lines of the node containing `needle` since the last clear().
+  int logLines(const std::string& needle) {
+    std::lock_guard<std::mutex> l(mutex_);
+    int n = 0;
+    for (const auto& line : logs_)
+      if (line.find(needle) != std::string::npos) ++n;
+    return n;
+  }
+  void settle() { ros::WallDuration(0.3).sleep(); }
+
+ private:
+  void imuCb(const sensor_msgs::ImuConstPtr& m) {
+    std::lock_guard<std::mutex> l(mutex_);
+    imu_msgs_.push_back(*m);
+  }
+  void rotationCb(const visual_gyro::RotationEstimateConstPtr& m) {
+    std::lock_guard<std::mutex> l(mutex_);
+    rotation_msgs_.push_back(*m);
+  }
+  void orientationCb(const geometry_msgs::PoseStampedConstPtr&) {
+    std::lock_guard<std::mutex> l(mutex_);
+    ++orientation_count_;
+  }
+  void diagCb(const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
+    std::lock_guard<std::mutex> l(mutex_);
+    for (const auto& s : a->status)
+      if (s.name.find("visual_gyro") != std::string::npos) diag_.emplace_back(s.level, s.message);
+  }
+  void rosoutCb(const rosgraph_msgs::LogConstPtr& m) {
+    std::lock_guard<std::mutex> l(mutex_);
+    if (m->name.find("visual_gyro") != std::string::npos) logs_.push_back(m->msg);
+  }
+
+  ros::NodeHandle nh_;
+  ros::Publisher image_pub_, info_pub_;
+  sensor_msgs::CameraInfo info_;
+  ros::Subscriber imu_sub_, rotation_sub_, orientation_sub_, diag_sub_, rosout_sub_;
+  std::mutex mutex_;
+  int orientation_count_ = 0;
+  std::vector<RotationEstimate> rotation_msgs_;
+  std::vector<sensor_msgs::Imu> imu_msgs_;
+  std::vector<std::pair<int, std::string>> diag_;
+  std::vector<std::string> logs_;
+};
+
+Harness* g_harness = nullptr;
+
+/// Sets one double of the node's dynamic_reconfigure settings.
+bool reconfigure(const std::string& name, double value) {
+  dynamic_reconfigure::Reconfigure srv;
+  dynamic_reconfigure::DoubleParameter p;
+  p.name = name;
+  p.value = value;
+  srv.request.config.doubles.push_back(p);
+  return ros::service::waitForService(std::string(kNs) + "/set_parameters", 10000) &&
+         ros::service::call(std::string(kNs) + "/set_parameters", srv);
+}
+
+using Level = diagnostic_msgs::DiagnosticStatus;
+
+// Runs first: images arrive, camera_info never does.
+TEST(ReliabilityRos, ImagesWithoutCameraInfoWarnWithinThreeSeconds) {
+  Harness& h = *g_harness;
+  ASSERT_TRUE(h.connected());
+  h.clear();
+  const ros::WallTime start = ros::WallTime::now();
+  bool warned = false;
+  for (int k = 0; k < 40 && !warned; ++k) {
+    EXPECT_FALSE(h.send(turn()[k % 12], 10.0 + 0.1 * k, 0.1, enc::MONO8, false)) << "an output without camera_info";
+    for (const auto& d : h.diagnostics())
+      warned = warned || (d.first == Level::WARN && d.second.find("camera_info") != std::string::npos);
+  }
+  EXPECT_TRUE(warned) << "no WARN naming camera_info";
+  EXPECT_LT((ros::WallTime::now() - start).toSec(), 3.5) << "the WARN took longer than 3 s (+ publishing)";
+}
+
+TEST(ReliabilityRos, MicrosecondStepsNeverGiveAValidImu) {
+  Harness& h = *g_harness;
+  h.clear();
+  const double t0 = 100.0;
+  ASSERT_TRUE(h.send(turn()[0], t0));
+  EXPECT_FALSE(h.send(turn()[1], t0 + 1e-6, 1.0)) << "a frame 1 us after the previous was used";
+  EXPECT_FALSE(h.send(turn()[2], t0 + 1e-6 + 3e-9, 1.0)) << "a frame 3 ns after the previous was used";
+  ASSERT_TRUE(h.send(turn()[2], t0 + 0.1));
+  h.settle();
+  for (const auto& imu : h.imus()) {
+    const double rate = std::hypot(imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z);
+    EXPECT_LT(rate, 1.0) << "an Imu at " << rate << " rad/s";
+  }
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 1u);
+  EXPECT_TRUE(rotations[0].valid) << rotations[0].status;
+  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0, 1e-6) << "the skipped frames were paired with";
+  EXPECT_NEAR(rotations[0].yaw / kDeg, 2.0, 0.2);
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "min_dt", 3.0)) << "no WARN naming min_dt";
+}
+
+TEST(ReliabilityRos, FrozenFrameNeverGivesAValidImu) {
+  Harness& h = *g_harness;
+  h.clear();
+  const double t0 = 200.0;
+  ASSERT_TRUE(h.send(turn()[0], t0));
+  for (int k = 1; k <= 3; ++k) ASSERT_TRUE(h.send(turn()[0], t0 + 0.1 * k));
+  h.settle();
+  EXPECT_TRUE(h.imus().empty()) << "an Imu from a repeated frame";
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 3u);
+  for (const auto& r : rotations) {
+    EXPECT_FALSE(r.valid);
+    EXPECT_NE(r.status.find("camera frozen?"), std::string::npos) << r.status;
+  }
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "camera frozen?", 3.0));
+}
+
+TEST(ReliabilityRos, Mono16RecoversOnTheNextNormalFrame) {
+  Harness& h = *g_harness;
+  h.clear();
+  const double t0 = 300.0;
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 4; ++k) {
+    cv::Mat m;
+    turn()[k].convertTo(m, CV_16U, 16.0);  // a 12-bit camera
+    frames.push_back(m);
+  }
+  frames[1].at<uint16_t>(5, 5) = 65535;  // one saturated pixel beyond 12 bits
+  for (int k = 0; k < 4; ++k) ASSERT_TRUE(h.send(frames[k], t0 + 0.1 * k, 5.0, enc::MONO16));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 3u);
+  // Frames 2 and 3 are normal again: their estimate is valid and right.
+  EXPECT_TRUE(rotations[2].valid) << rotations[2].status;
+  EXPECT_NEAR(rotations[2].yaw / kDeg, 1.0, 0.15);
+  EXPECT_GT(rotations[2].features, 100u);
+}
+
+TEST(ReliabilityRos, ImplausibleCalibrationIsAnErrorWithNoOutput) {
+  Harness& h = *g_harness;
+  struct Case {
+    const char* what;
+    std::function<void(sensor_msgs::CameraInfo*)> change;
+    const char* needle;
+  };
+  const std::vector<Case> cases = {
+      {"principal point outside", [](sensor_msgs::CameraInfo* i) { i->K[2] = 5000.0; }, "principal point"},
+      {"folding distortion", [](sensor_msgs::CameraInfo* i) { i->D = {-1.0, 0, 0, 0, 0}; }, "fold"},
+      {"binning 1e6", [](sensor_msgs::CameraInfo* i) { i->binning_x = 1000000; }, "binning"},
+  };
+  double t = 400.0;
+  for (const Case& c : cases) {
+    h.clear();
+    sensor_msgs::CameraInfo info = h.info();
+    c.change(&info);
+    for (int k = 0; k < 25; ++k, t += 0.1)
+      EXPECT_FALSE(h.send(turn()[k % 12], t, 0.1, enc::MONO8, true, &info)) << c.what << ": an output";
+    EXPECT_TRUE(h.waitDiagnostic(Level::ERROR, c.needle, 3.0)) << c.what << ": no ERROR naming '" << c.needle << "'";
+    EXPECT_TRUE(h.rotations().empty()) << c.what;
+    EXPECT_LE(h.logLines(c.needle), 1) << c.what << ": the error is logged more than once in 2.5 s";
+    t += 10.0;
+  }
+  // A good camera again: outputs come back.
+  ASSERT_TRUE(h.send(turn()[0], t));
+  ASSERT_TRUE(h.send(turn()[1], t + 0.1));
+}
+
+TEST(ReliabilityRos, CameraInfoChangingEveryFrameIsAResetStorm) {
+  Harness& h = *g_harness;
+  h.clear();
+  double t = 600.0;
+  for (int k = 0; k < 30; ++k, t += 0.1) {
+    sensor_msgs::CameraInfo info = h.info();
+    info.K[0] = info.K[4] = 250.0 + (k % 2);
+    h.send(turn()[k % 12], t, 2.0, enc::MONO8, true, &info);
+  }
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "reset storm", 3.0));
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "camera_info changed", 1.0));
+  EXPECT_LE(h.logLines("camera changed"), 1) << "the camera-change line is not throttled";
+}
+
+TEST(ReliabilityRos, MaxGapBelowTheFrameIntervalIsAResetStorm) {
+  Harness& h = *g_harness;
+  ASSERT_TRUE(reconfigure("max_gap", 0.05));
+  h.clear();
+  double t = 700.0;
+  for (int k = 0; k < 30; ++k, t += 0.1) h.send(turn()[k % 12], t, 2.0);
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "max_gap", 3.0));
+  EXPECT_LE(h.logLines("exceeds ~max_gap"), 1) << "the gap warning is not throttled";
+  EXPECT_TRUE(h.rotations().empty());
+  ASSERT_TRUE(reconfigure("max_gap", 1.0));
+}
+
+TEST(ReliabilityRos, MaxRateIsLiveAndNamesTheReason) {
+  Harness& h = *g_harness;
+  ASSERT_TRUE(reconfigure("max_rate_dps", 5.0));  // the views turn at 10 deg/s
+  h.clear();
+  const double t0 = 800.0;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
+  h.settle();
+  EXPECT_TRUE(h.imus().empty());
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 2u);
+  for (const auto& r : rotations) EXPECT_NE(r.status.find("max_rate_dps"), std::string::npos) << r.status;
+  ASSERT_TRUE(reconfigure("max_rate_dps", 2000.0));
+  ASSERT_TRUE(h.send(turn()[3], t0 + 0.3));
+  h.settle();
+  ASSERT_EQ(h.rotations().size(), 3u);
+  EXPECT_TRUE(h.rotations().back().valid) << h.rotations().back().status;
+}
+
+TEST(ReliabilityRos, TooFineBinsAreRefusedLive) {
+  Harness& h = *g_harness;
+  h.clear();
+  ASSERT_TRUE(reconfigure("rotation_bin_deg", 1e-12));
+  EXPECT_TRUE(waitFor([&] { return h.logLines("rejected settings") > 0; }, 3.0)) << "no error line";
+  const double t0 = 900.0;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 2u);
+  // The previous settings (0.5 deg cells) still estimate.
+  for (const auto& r : rotations) {
+    EXPECT_TRUE(r.valid) << r.status;
+    EXPECT_GT(r.matches, 100u);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_reliability_ros");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  Harness harness;
+  g_harness = &harness;
+  const int result = RUN_ALL_TESTS();
+  spinner.stop();
+  g_harness = nullptr;
+  return result;
+}
