@@ -126,6 +126,7 @@ void VisualGyroNodelet::connectCb() {
     compressed_image_sub_.shutdown();
     ground_truth_sub_.shutdown();
     probe_image_sub_.shutdown();
+    probe_compressed_sub_.shutdown();
     probe_info_sub_.shutdown();
     probing_ = false;
     subscribed_ = false;
@@ -135,28 +136,37 @@ void VisualGyroNodelet::connectCb() {
     }
     NODELET_DEBUG("visual_gyro: no subscribers left, unsubscribed from the camera");
   } else if (needed && !subscribed_) {
-    ros::NodeHandle& nh = getNodeHandle();
-    image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-    const std::string compressed_topic = nh.resolveName("image") + "/compressed";
-    if (decode_compressed_ && use_camera_info_) {
-      compressed_camera_sub_.subscribe(nh, compressed_topic, queue_size_);
-      compressed_info_sub_.subscribe(nh, image_transport::getCameraInfoTopic(nh.resolveName("image")), queue_size_);
-      compressed_sync_.reset(new message_filters::TimeSynchronizer<sensor_msgs::CompressedImage, sensor_msgs::CameraInfo>(
-          compressed_camera_sub_, compressed_info_sub_, std::max(queue_size_, 5)));
-      compressed_sync_->registerCallback(boost::bind(&VisualGyroNodelet::compressedCameraCb, this,
-                                                     boost::placeholders::_1, boost::placeholders::_2));
-    } else if (decode_compressed_) {
-      compressed_image_sub_ = nh.subscribe(compressed_topic, queue_size_, &VisualGyroNodelet::compressedImageCb, this);
-    } else if (use_camera_info_) {
-      camera_sub_ = it_->subscribeCamera("image", queue_size_, &VisualGyroNodelet::cameraCb, this, hints);
-    } else {
-      image_sub_ = it_->subscribe("image", queue_size_, &VisualGyroNodelet::imageCb, this, hints);
+    // A transport whose plugin cannot be loaded throws; uncaught, it would take down the whole
+    // nodelet manager and every nodelet in it.
+    try {
+      ros::NodeHandle& nh = getNodeHandle();
+      image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
+      const std::string compressed_topic = nh.resolveName("image") + "/compressed";
+      if (decode_compressed_ && use_camera_info_) {
+        compressed_camera_sub_.subscribe(nh, compressed_topic, queue_size_);
+        compressed_info_sub_.subscribe(nh, image_transport::getCameraInfoTopic(nh.resolveName("image")), queue_size_);
+        compressed_sync_.reset(new message_filters::TimeSynchronizer<sensor_msgs::CompressedImage, sensor_msgs::CameraInfo>(
+            compressed_camera_sub_, compressed_info_sub_, std::max(queue_size_, 5)));
+        compressed_sync_->registerCallback(boost::bind(&VisualGyroNodelet::compressedCameraCb, this,
+                                                       boost::placeholders::_1, boost::placeholders::_2));
+      } else if (decode_compressed_) {
+        compressed_image_sub_ = nh.subscribe(compressed_topic, queue_size_, &VisualGyroNodelet::compressedImageCb, this);
+      } else if (use_camera_info_) {
+        camera_sub_ = it_->subscribeCamera("image", queue_size_, &VisualGyroNodelet::cameraCb, this, hints);
+      } else {
+        image_sub_ = it_->subscribe("image", queue_size_, &VisualGyroNodelet::imageCb, this, hints);
+      }
+      ground_truth_sub_ = nh.subscribe("ground_truth", 10, &VisualGyroNodelet::groundTruthCb, this);
+      subscribed_ = true;
+      // Until the first synchronized pair, count what arrives on each topic.
+      updateProbeLocked(true);
+      NODELET_DEBUG("visual_gyro: subscribed to %s", nh.resolveName("image").c_str());
+    } catch (const image_transport::TransportLoadException& e) {
+      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: cannot subscribe to the images (%s); no output until ~image_transport is fixed",
+                             e.what());
+      std::lock_guard<std::mutex> state_lock(state_mutex_);
+      health_.setSettingsProblem(std::string("image transport: ") + e.what());
     }
-    ground_truth_sub_ = nh.subscribe("ground_truth", 10, &VisualGyroNodelet::groundTruthCb, this);
-    subscribed_ = true;
-    // Until the first synchronized pair, count what arrives on each topic.
-    updateProbeLocked(true);
-    NODELET_DEBUG("visual_gyro: subscribed to %s", nh.resolveName("image").c_str());
   }
 }
 
@@ -177,12 +187,22 @@ void VisualGyroNodelet::updateProbeLocked(bool force_start) {
         [this](const sensor_msgs::ImageConstPtr&) { ++probe_images_; };
     const boost::function<void(const sensor_msgs::CameraInfoConstPtr&)> on_info =
         [this](const sensor_msgs::CameraInfoConstPtr&) { ++probe_infos_; };
-    probe_image_sub_ = it_->subscribe("image", 1, on_image, ros::VoidPtr(), hints);
+    if (decode_compressed_) {
+      // The same topic the camera subscription reads: the image_transport plugin is missing, so
+      // the probe cannot go through image_transport either.
+      const boost::function<void(const sensor_msgs::CompressedImageConstPtr&)> on_compressed =
+          [this](const sensor_msgs::CompressedImageConstPtr&) { ++probe_images_; };
+      probe_compressed_sub_ =
+          nh.subscribe<sensor_msgs::CompressedImage>(nh.resolveName("image") + "/compressed", 1, on_compressed);
+    } else {
+      probe_image_sub_ = it_->subscribe("image", 1, on_image, ros::VoidPtr(), hints);
+    }
     probe_info_sub_ = nh.subscribe<sensor_msgs::CameraInfo>(
         image_transport::getCameraInfoTopic(nh.resolveName("image")), 1, on_info);
     probing_ = true;
   } else if (!wanted && probing_) {
     probe_image_sub_.shutdown();
+    probe_compressed_sub_.shutdown();
     probe_info_sub_.shutdown();
     probing_ = false;
   }

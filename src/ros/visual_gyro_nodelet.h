@@ -98,6 +98,7 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   image_transport::CameraSubscriber camera_sub_;
   image_transport::Subscriber image_sub_;
   image_transport::Subscriber probe_image_sub_;  ///< see updateProbe()
+  ros::Subscriber probe_compressed_sub_;         ///< the probe's image input when decoding ourselves
   ros::Subscriber probe_info_sub_;
   bool probing_ = false;                         ///< guarded by connect_mutex_
   std::atomic<uint64_t> probe_images_{0}, probe_infos_{0};  ///< since the last diagnostics update
