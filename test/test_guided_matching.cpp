@@ -94,9 +94,7 @@ TEST(GuidedMatching, FindsTheCorrectMatchesOfGlobalMatching) {
               global.size(), global_correct, guided.size(), guided_correct, found);
   EXPECT_GE(global_correct, 300u);
   EXPECT_EQ(found, global_correct);
-  // The window removes wrong candidates: guided is at least as clean as global.
-  EXPECT_GE(static_cast<double>(guided_correct) / guided.size(),
-            static_cast<double>(global_correct) / global.size());
+  EXPECT_GE(guided_correct, global_correct);
 }
 
 TEST(GuidedMatching, PredictionFollowsTheCameraModelAndDropsPointsLeavingTheView) {
@@ -170,41 +168,45 @@ TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
             "global");
 }
 
-// Adaptive detection: a low-contrast half of the image, with hardly a corner at the normal FAST
-// threshold, gets its share of corners from the lower per-cell threshold.
+// Adaptive detection: a low-contrast half of the image, without a corner at the normal FAST
+// threshold, gets corners from the lower per-cell threshold once the strong corners cannot fill
+// the budget; while they can, the selection is that of the fixed threshold.
 TEST(AdaptiveDetection, LowContrastCellsGetCornersAtTheFloorThreshold) {
   vg::RenderSettings scene = roomScene();
   scene.setCentredCamera(640, 480, 500.0);
   cv::Mat image = vg::renderView(scene, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
   cv::Mat right = image(cv::Rect(320, 0, 320, 480));
-  right.convertTo(right, CV_8U, 0.12, 100);  // about a tenth of the contrast
+  right.convertTo(right, CV_8U, 0.2, 100);  // a fifth of the contrast
 
-  vg::FrontEndSettings fixed;
-  fixed.min_fast_threshold = fixed.fast_threshold;  // off
-  vg::FrontEndSettings adaptive;
   auto rightCount = [](const std::vector<cv::Point2f>& corners) {
-    return std::count_if(corners.begin(), corners.end(), [](const cv::Point2f& p) { return p.x >= 320; });
+    return static_cast<long>(
+        std::count_if(corners.begin(), corners.end(), [](const cv::Point2f& p) { return p.x >= 320; }));
   };
+  vg::FrontEndSettings fixed;
+  fixed.max_features = 4000;  // more than the strong corners: the budget is not filled
+  fixed.min_fast_threshold = fixed.fast_threshold;  // off
+  vg::FrontEndSettings adaptive = fixed;
+  adaptive.min_fast_threshold = vg::FrontEndSettings().min_fast_threshold;
   const std::vector<cv::Point2f> before = vg::FeatureFrontEnd(fixed).detect(image);
   const std::vector<cv::Point2f> after = vg::FeatureFrontEnd(adaptive).detect(image);
   std::printf("corners in the low-contrast half: fixed threshold %ld, adaptive %ld (of %zu / %zu)\n",
-              static_cast<long>(rightCount(before)), static_cast<long>(rightCount(after)), before.size(),
-              after.size());
-  EXPECT_LT(rightCount(before), 100);
-  // Each of the 24 cells of that half gets close to its share (1500 / 48 = 31).
-  EXPECT_GE(rightCount(after), 24 * 25);
-  EXPECT_LE(after.size(), static_cast<size_t>(adaptive.max_features));
-  // Cells with enough strong corners keep exactly the corners of the fixed threshold.
-  auto leftOf = [](const std::vector<cv::Point2f>& corners) {
-    std::set<std::pair<float, float>> out;
-    for (const cv::Point2f& p : corners)
-      if (p.x < 300) out.insert({p.x, p.y});
-    return out;
-  };
-  const auto left_before = leftOf(before), left_after = leftOf(after);
-  size_t common = 0;
-  for (const auto& p : left_after) common += left_before.count(p);
-  EXPECT_GE(common, 0.9 * left_after.size());
+              rightCount(before), rightCount(after), before.size(), after.size());
+  ASSERT_LT(before.size(), 4000u) << "the strong corners fill the budget; the test needs them not to";
+  EXPECT_LT(rightCount(before), 50);
+  // The 24 cells of that half (share 4000 / 48 = 83 each) get a good part of their shares.
+  EXPECT_GE(rightCount(after), 24 * 40);
+  EXPECT_LE(after.size(), 4000u);
+  // Every strong corner is still selected (the budget is not full).
+  std::set<std::pair<float, float>> selected;
+  for (const cv::Point2f& p : after) selected.insert({p.x, p.y});
+  for (const cv::Point2f& p : before) EXPECT_TRUE(selected.count({p.x, p.y})) << p;
+
+  // With the default budget the strong corners fill it: exactly the fixed threshold's corners.
+  vg::FrontEndSettings fixed_default, adaptive_default;
+  fixed_default.min_fast_threshold = fixed_default.fast_threshold;
+  const std::vector<cv::Point2f> full_fixed = vg::FeatureFrontEnd(fixed_default).detect(image);
+  ASSERT_EQ(full_fixed.size(), static_cast<size_t>(fixed_default.max_features));
+  EXPECT_EQ(vg::FeatureFrontEnd(adaptive_default).detect(image), full_fixed);
 }
 
 TEST(RendererDegradations, ContrastBlurAndJpegChangeTheImageAsDocumented) {
@@ -230,8 +232,12 @@ TEST(RendererDegradations, ContrastBlurAndJpegChangeTheImageAsDocumented) {
     cv::Sobel(image, g, CV_32F, dx, dy);
     return cv::mean(cv::abs(g))[0];
   };
-  EXPECT_LT(gradient(blurred, 1, 0), 0.5 * gradient(clean, 1, 0));
-  EXPECT_GT(gradient(blurred, 0, 1), 0.7 * gradient(clean, 0, 1));
+  const double along = gradient(blurred, 1, 0) / gradient(clean, 1, 0);
+  const double across = gradient(blurred, 0, 1) / gradient(clean, 0, 1);
+  std::printf("6 px blur along x: x gradients x%.2f, y gradients x%.2f\n", along, across);
+  EXPECT_LT(along, 0.75);
+  EXPECT_GT(across, 0.8);
+  EXPECT_LT(along, across - 0.15);
 
   s.blur_px = 0.0;
   s.jpeg_quality = 20;
@@ -242,8 +248,10 @@ TEST(RendererDegradations, ContrastBlurAndJpegChangeTheImageAsDocumented) {
   EXPECT_GT(change, 0.5);
   EXPECT_LT(change, 10.0);
 
-  for (auto bad : {[](vg::RenderSettings* r) { r->contrast = 0.0; }, [](vg::RenderSettings* r) { r->blur_px = -1.0; },
-                   [](vg::RenderSettings* r) { r->jpeg_quality = 101; }}) {
+  const std::vector<std::function<void(vg::RenderSettings*)>> bad_settings{
+      [](vg::RenderSettings* r) { r->contrast = 0.0; }, [](vg::RenderSettings* r) { r->blur_px = -1.0; },
+      [](vg::RenderSettings* r) { r->jpeg_quality = 101; }};
+  for (const auto& bad : bad_settings) {
     vg::RenderSettings b = roomScene();
     bad(&b);
     EXPECT_THROW(vg::renderView(b, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero()), std::invalid_argument);

@@ -23,7 +23,7 @@ struct FrontEndSettings {
   /// Adaptive detection: when the corners at fast_threshold cannot fill max_features, every grid
   /// cell with fewer corners than its share is detected again with this lower threshold (grey
   /// levels; >= fast_threshold turns it off).
-  int min_fast_threshold = 7;
+  int min_fast_threshold = 5;
   int max_features = 1500;      ///< at most this many corners per frame
   int grid_cols = 8;            ///< bucketing grid: corners are spread over cols x rows cells
   int grid_rows = 6;

@@ -28,8 +28,8 @@ struct FrameResult {
   Eigen::Matrix3d angular_velocity_covariance = Eigen::Matrix3d::Identity();
   int features = 0;                 ///< keypoints described in this frame
   /// How this frame was matched: "guided" (around the rotation prior's prediction), "global"
-  /// (no prior, or matching = global), "global_fallback" (guided found too few); "" when not
-  /// matched (first frame, rejected image).
+  /// (no prior, or matching = global), "global_fallback" (guided found too few matches, or its
+  /// matches gave no valid estimate); "" when not matched (first frame, rejected image).
   std::string matching;
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
@@ -74,6 +74,8 @@ class VisualGyro {
   /// Matches previous_features_ to features_ into matches_: guided by `prior` when usable, else
   /// (or when guided finds too few) global. Sets matching_.
   void matchFrames(const RotationPrior& prior);
+  /// Copies the pixels and bearings of matches_ into `result` (in match order).
+  void collectMatches(FrameResult* result) const;
   /// Records how far `prior` was from `estimate` (see prior_uncertainty_rad_).
   void updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate);
 

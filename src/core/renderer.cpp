@@ -571,14 +571,16 @@ void buildDimRoomScene(const RenderSettings& settings, Scene* scene) {
   Rng rng(mixSeed(settings.seed, 0x44494Dull));
   const double x0 = -3.2, x1 = 3.8, y0 = -1.6, y1 = 1.4, z0 = -4.5, z1 = 6.5;
   const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY(), uz = Eigen::Vector3d::UnitZ();
-  // Plain paint: weak noise and a few faint marks.
+  // Plain paint: weak shading and faint marks (scuffs, switches, pictures), all within the band.
   TextureStyle wall;
-  wall.mean_lo = 55.0;
-  wall.mean_hi = 65.0;
-  wall.noise_amplitude = 4.0;
-  wall.fine_amplitude = 2.0;
-  wall.shape_density = 0.25;
-  wall.shape_contrast = 9.0;
+  wall.mean_lo = 57.0;
+  wall.mean_hi = 63.0;
+  wall.noise_amplitude = 3.0;
+  wall.fine_amplitude = 1.5;
+  wall.shape_density = 0.6;
+  wall.min_shape = 4.0;
+  wall.max_shape = 60.0;
+  wall.shape_contrast = 14.0;
   const float plain = 1.0f;  // no per-plane brightness change: the contrast stays in the textures
   builder.addPlane({x0, y1, z0}, ux, uz, x1 - x0, z1 - z0, 2.5, wall, false, plain);  // floor
   builder.addPlane({x0, y0, z0}, ux, uz, x1 - x0, z1 - z0, 3.0, wall, false, plain);  // ceiling

@@ -109,19 +109,29 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     result.dt = dt;
     const RotationPrior prior = prior_.priorFor(dt);
     auto t0 = std::chrono::steady_clock::now();
-    const std::vector<FeatureMatch>& matches = matches_;
     matchFrames(prior);
-    result.matching = matching_;
     times.match = elapsedMs(t0);
-    for (const FeatureMatch& m : matches) {
-      result.previous_pixels.push_back(previous_features_.keypoints[m.previous]);
-      result.current_pixels.push_back(features.keypoints[m.current]);
-      result.previous_bearings.push_back(previous_keypoint_bearings_[m.previous]);
-      result.current_bearings.push_back(bearings[m.current]);
-    }
+    collectMatches(&result);
     if (settings_.run_estimator) {
       result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
                                              prior);
+      if (!result.rotation.valid && matching_ == "guided") {
+        // Guided matches that give no estimate: the prior may have sent the search to the wrong
+        // place (plenty of chance matches there, few consistent). Global matching does not
+        // depend on it; its estimate replaces the guided one, and both estimates' times count.
+        const StageTimes guided_times = result.rotation.times;
+        t0 = std::chrono::steady_clock::now();
+        front_end_.match(previous_features_, features_, &matches_);
+        matching_ = "global_fallback";
+        times.match += elapsedMs(t0);
+        collectMatches(&result);
+        result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
+                                               prior);
+        result.rotation.times.estimate += guided_times.estimate;
+        result.rotation.times.vote += guided_times.vote;
+        result.rotation.times.vote_device += guided_times.vote_device;
+        result.rotation.times.refine += guided_times.refine;
+      }
       prior_.update(result.rotation, dt);
       updatePriorUncertainty(prior, result.rotation);
       result.has_estimate = result.rotation.valid;
@@ -131,6 +141,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         result.angular_velocity_covariance = result.rotation.covariance / (dt * dt);
       }
     }
+    result.matching = matching_;
   }
   times.estimate = result.rotation.times.estimate;
   times.vote = result.rotation.times.vote;
@@ -145,6 +156,19 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   std::swap(previous_features_, features_);
   std::swap(previous_keypoint_bearings_, bearings_);
   return result;
+}
+
+void VisualGyro::collectMatches(FrameResult* result) const {
+  result->previous_pixels.clear();
+  result->current_pixels.clear();
+  result->previous_bearings.clear();
+  result->current_bearings.clear();
+  for (const FeatureMatch& m : matches_) {
+    result->previous_pixels.push_back(previous_features_.keypoints[m.previous]);
+    result->current_pixels.push_back(features_.keypoints[m.current]);
+    result->previous_bearings.push_back(previous_keypoint_bearings_[m.previous]);
+    result->current_bearings.push_back(bearings_[m.current]);
+  }
 }
 
 void VisualGyro::matchFrames(const RotationPrior& prior) {
