@@ -1032,6 +1032,9 @@ void timingSweep(const Sequence& seq, const Options& o, const EstimatorSettings&
 
 int run(int argc, char** argv) {
   const Options o = parseOptions(argc, argv);
+  // One thread: the figures compare front ends and estimators per thread. OpenCV would otherwise
+  // spread some of its functions (ORB, brute-force matching, optical flow) over every core.
+  cv::setNumThreads(1);
 
   VisualGyroSettings settings;
   for (const auto& assignment : o.sets) applySetting(assignment, &settings);
