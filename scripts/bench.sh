@@ -111,11 +111,11 @@ for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blu
     echo "[bench] front ends: skipping ${name}: ${folder} not present"
     continue
   fi
-  run_eval front_end "${name}/guided" 0 "${folder}" --method vote
-  run_eval front_end "${name}/global" 0 "${folder}" --method vote --set matching=global
-  run_eval front_end "${name}/fixed_global" 0 "${folder}" --method vote --set matching=global --set min_fast_threshold=20
-  run_eval front_end "${name}/orb" 0 "${folder}" --method vote --front-end orb
-  run_eval front_end "${name}/klt" 0 "${folder}" --method vote --front-end klt
+  run_eval front_end "${name}:guided" 0 "${folder}" --method vote
+  run_eval front_end "${name}:global" 0 "${folder}" --method vote --set matching=global
+  run_eval front_end "${name}:fixed_global" 0 "${folder}" --method vote --set matching=global --set min_fast_threshold=20
+  run_eval front_end "${name}:orb" 0 "${folder}" --method vote --front-end orb
+  run_eval front_end "${name}:klt" 0 "${folder}" --method vote --front-end klt
 done
 
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over

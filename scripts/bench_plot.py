@@ -94,12 +94,12 @@ FRONT_END_VARIANTS = [("guided", "native, guided matching"), ("global", "native,
 
 def front_end_table(rows):
     """Markdown: per sequence, vote on each front end's matches (group front_end, label
-    '<sequence>/<variant>'), then the goal ratios measured in the same run."""
+    '<sequence>:<variant>'), then the goal ratios measured in the same run."""
     by_seq = {}
     for r in rows:
         if r.get("group") != "front_end" or r.get("method") != "vote":
             continue
-        seq, _, variant = r["label"].partition("/")
+        seq, _, variant = r["label"].partition(":")
         by_seq.setdefault(seq, {})[variant] = r
     if not by_seq:
         return []
