@@ -109,7 +109,13 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     result.dt = dt;
     const RotationPrior prior = prior_.priorFor(dt);
     auto t0 = std::chrono::steady_clock::now();
-    matchFrames(prior);
+    try {
+      matchFrames(prior);
+    } catch (const std::exception& e) {
+      // Before any state changed: the frame is rejected, the previous one stays.
+      result.error = std::string("front end failed: ") + e.what();
+      return result;
+    }
     times.match = elapsedMs(t0);
     collectMatches(&result);
     if (settings_.run_estimator) {
