@@ -131,8 +131,14 @@ class FeatureFrontEnd {
   /// Reused buffers (see the class comment).
   struct Workspace {
     std::vector<cv::KeyPoint> corners, cell_corners;
-    std::vector<std::vector<std::pair<float, cv::Point2f>>> cells;
-    std::vector<std::pair<float, cv::Point2f>> selected, leftovers;
+    struct Candidate {  // a detected corner: sort key (strongest first), grid cell, position
+      uint64_t key;
+      int cell;
+      cv::Point2f point;
+    };
+    std::vector<Candidate> candidates;
+    std::vector<int> cell_count;
+    std::vector<uint8_t> redetect, chosen;
     cv::Mat smoothed;
     std::vector<int> row_best, row_best_d, row_second_d, col_best, col_best_d;
     // Current keypoints sorted by grid cell (guided matching): cell starts, original indices,

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <opencv2/features2d.hpp>
@@ -89,13 +90,16 @@ std::vector<std::array<int8_t, 4>> buildBriefPattern() {
   return pairs;
 }
 
-using Candidate = std::pair<float, cv::Point2f>;  // FAST response, position
-
-/// Strongest first; ties broken by position so the selection does not depend on sort stability.
-bool stronger(const Candidate& a, const Candidate& b) {
-  if (a.first != b.first) return a.first > b.first;
-  if (a.second.y != b.second.y) return a.second.y < b.second.y;
-  return a.second.x < b.second.x;
+/// Orders detected corners strongest first, ties broken by position (smaller y, then smaller x) so the
+/// selection does not depend on sort stability: the response's float bits (order-preserving for
+/// the non-negative FAST scores) above the complemented integer pixel coordinates. One integer
+/// comparison instead of three float ones keeps the sorts cheap.
+uint64_t candidateKey(float response, const cv::Point2f& point) {
+  uint32_t bits;
+  std::memcpy(&bits, &response, sizeof(bits));
+  const uint64_t y = 0xFFFF - static_cast<uint64_t>(std::clamp(static_cast<int>(point.y), 0, 0xFFFF));
+  const uint64_t x = 0xFFFF - static_cast<uint64_t>(std::clamp(static_cast<int>(point.x), 0, 0xFFFF));
+  return (static_cast<uint64_t>(bits) << 32) | (y << 16) | x;
 }
 
 constexpr int kNoMatch = -1;
@@ -344,13 +348,12 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   if (width < 2 * kDetectBorder + 1 || height < 2 * kDetectBorder + 1) return;
 
   Workspace& w = work_;
+  using Candidate = Workspace::Candidate;
   cv::FAST(gray, w.corners, settings_.fast_threshold, /*nonmaxSuppression=*/true,
            cv::FastFeatureDetector::TYPE_9_16);
 
   const int cols = settings_.grid_cols, rows = settings_.grid_rows;
-  const size_t n_cells = static_cast<size_t>(cols) * rows;
-  if (w.cells.size() != n_cells) w.cells.resize(n_cells);
-  for (auto& cell : w.cells) cell.clear();
+  const int n_cells = cols * rows;
   auto inside = [&](float x, float y) {
     return !(x < kDetectBorder || y < kDetectBorder || x > width - 1 - kDetectBorder ||
              y > height - 1 - kDetectBorder);
@@ -358,15 +361,19 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   auto cellOf = [&](float x, float y) {
     const int cx = std::min(cols - 1, static_cast<int>(x * cols / width));
     const int cy = std::min(rows - 1, static_cast<int>(y * rows / height));
-    return static_cast<size_t>(cy) * cols + cx;
+    return cy * cols + cx;
   };
+  w.candidates.clear();
+  w.cell_count.assign(n_cells, 0);
   for (const cv::KeyPoint& kp : w.corners) {
     if (!inside(kp.pt.x, kp.pt.y)) continue;
-    w.cells[cellOf(kp.pt.x, kp.pt.y)].push_back({kp.response, kp.pt});
+    const int cell = cellOf(kp.pt.x, kp.pt.y);
+    w.candidates.push_back({candidateKey(kp.response, kp.pt), cell, kp.pt});
+    ++w.cell_count[cell];
   }
 
   const size_t budget = static_cast<size_t>(settings_.max_features);
-  const size_t per_cell = budget / n_cells;
+  const int per_cell = static_cast<int>(budget / n_cells);
 
   // Adaptive threshold: when the strong corners cannot fill the budget, each cell short of its
   // share is detected again at the floor threshold, as ORB-SLAM does, so dim or low-contrast
@@ -375,55 +382,71 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   // of them for weak ones, at the cost of a low-threshold pass over every sparse cell.) FAST's
   // score is the largest threshold at which a pixel is still a corner, so the corners that passed
   // the first threshold are found again (and ranked first).
-  size_t strong = 0;
-  for (const auto& cell : w.cells) strong += cell.size();
-  if (settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0 && strong < budget) {
+  if (settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0 &&
+      w.candidates.size() < budget) {
     // FAST needs 3 pixels around a candidate: the cell is widened by that much, then only corners
     // inside the cell itself are kept.
     constexpr int kFastRadius = 3;
-    for (int cy = 0; cy < rows; ++cy) {
-      for (int cx = 0; cx < cols; ++cx) {
-        auto& cell = w.cells[static_cast<size_t>(cy) * cols + cx];
-        if (cell.size() >= per_cell) continue;
-        // Cell bounds as cellOf() assigns them: x in [x0, x1), y in [y0, y1).
-        const int x0 = (cx * width + cols - 1) / cols, x1 = ((cx + 1) * width + cols - 1) / cols;
-        const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
-        const int rx0 = std::max(0, x0 - kFastRadius), ry0 = std::max(0, y0 - kFastRadius);
-        const int rx1 = std::min(width, x1 + kFastRadius), ry1 = std::min(height, y1 + kFastRadius);
-        if (rx1 - rx0 < 2 * kFastRadius + 1 || ry1 - ry0 < 2 * kFastRadius + 1) continue;
-        cv::FAST(gray(cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0)), w.cell_corners,
-                 settings_.min_fast_threshold, /*nonmaxSuppression=*/true,
-                 cv::FastFeatureDetector::TYPE_9_16);
-        cell.clear();
-        for (const cv::KeyPoint& kp : w.cell_corners) {
-          const float x = kp.pt.x + rx0, y = kp.pt.y + ry0;
-          if (!inside(x, y) || cellOf(x, y) != static_cast<size_t>(cy) * cols + cx) continue;
-          cell.push_back({kp.response, cv::Point2f(x, y)});
-        }
+    auto searchArea = [&](int cell) {
+      const int cx = cell % cols, cy = cell / cols;
+      // Cell bounds as cellOf() assigns them: x in [x0, x1), y in [y0, y1).
+      const int x0 = (cx * width + cols - 1) / cols, x1 = ((cx + 1) * width + cols - 1) / cols;
+      const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
+      const int rx0 = std::max(0, x0 - kFastRadius), ry0 = std::max(0, y0 - kFastRadius);
+      const int rx1 = std::min(width, x1 + kFastRadius), ry1 = std::min(height, y1 + kFastRadius);
+      return cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0);
+    };
+    // The short cells' strong corners are replaced by everything found at the floor (a cell too
+    // small for FAST keeps what it has).
+    w.redetect.assign(n_cells, 0);
+    for (int c = 0; c < n_cells; ++c) {
+      const cv::Rect area = searchArea(c);
+      w.redetect[c] = w.cell_count[c] < per_cell && area.width >= 2 * kFastRadius + 1 &&
+                      area.height >= 2 * kFastRadius + 1;
+    }
+    w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
+                                      [&](const Candidate& c) { return w.redetect[c.cell] != 0; }),
+                       w.candidates.end());
+    for (int cell = 0; cell < n_cells; ++cell) {
+      if (!w.redetect[cell]) continue;
+      const cv::Rect area = searchArea(cell);
+      cv::FAST(gray(area), w.cell_corners, settings_.min_fast_threshold,
+               /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+      for (const cv::KeyPoint& kp : w.cell_corners) {
+        const cv::Point2f p(kp.pt.x + area.x, kp.pt.y + area.y);
+        if (!inside(p.x, p.y) || cellOf(p.x, p.y) != cell) continue;
+        w.candidates.push_back({candidateKey(kp.response, p), cell, p});
       }
     }
   }
 
   // Bucketing: an equal share per cell first, so texture-rich regions cannot take the whole
   // budget; the unused share of sparse cells then goes to the strongest corners left anywhere.
-  w.selected.clear();
-  w.leftovers.clear();
-  for (auto& cell : w.cells) {
-    const size_t keep = std::min(per_cell, cell.size());
-    // Only the strongest `keep` need ordering; the rest are leftovers in any order.
-    std::partial_sort(cell.begin(), cell.begin() + keep, cell.end(), stronger);
-    w.selected.insert(w.selected.end(), cell.begin(), cell.begin() + keep);
-    w.leftovers.insert(w.leftovers.end(), cell.begin() + keep, cell.end());
+  // One sort, strongest first: a cell's share is its first corners in that order, the leftovers
+  // stay in that order for the fill, and the selection comes out strongest first.
+  std::sort(w.candidates.begin(), w.candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
+  const size_t n = w.candidates.size();
+  w.chosen.assign(n, 0);
+  w.cell_count.assign(n_cells, 0);
+  size_t selected = 0;
+  for (size_t i = 0; i < n; ++i) {
+    int& taken = w.cell_count[w.candidates[i].cell];
+    if (taken < per_cell) {
+      ++taken;
+      w.chosen[i] = 1;
+      ++selected;
+    }
   }
-  if (w.selected.size() < budget && !w.leftovers.empty()) {
-    const size_t fill = std::min(budget - w.selected.size(), w.leftovers.size());
-    std::partial_sort(w.leftovers.begin(), w.leftovers.begin() + fill, w.leftovers.end(), stronger);
-    w.selected.insert(w.selected.end(), w.leftovers.begin(), w.leftovers.begin() + fill);
+  for (size_t i = 0; i < n && selected < budget; ++i) {
+    if (w.chosen[i]) continue;
+    w.chosen[i] = 1;
+    ++selected;
   }
-  std::sort(w.selected.begin(), w.selected.end(), stronger);
 
-  keypoints->reserve(w.selected.size());
-  for (const Candidate& c : w.selected) keypoints->push_back(c.second);
+  keypoints->reserve(selected);
+  for (size_t i = 0; i < n; ++i)
+    if (w.chosen[i]) keypoints->push_back(w.candidates[i].point);
 }
 
 FrameFeatures FeatureFrontEnd::describe(const cv::Mat& gray,
