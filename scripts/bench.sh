@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # `make bench`: accuracy and estimation time of every method on every shared sequence present and
-# on rendered sequences (growing outlier ratio, growing translation), the estimators' time over
+# on rendered sequences (growing outlier ratio, growing translation), the front ends compared on
+# the same frames (native guided / global, ORB, KLT), the estimators' time over
 # hypotheses and over matches (CPU, and CUDA where a device works), then a Markdown table, a CSV and
 # PNG plots in out/bench/.
 # Kept to roughly ten minutes on two cores (frame counts below).
@@ -90,6 +91,32 @@ if [[ -f ${OUT}/rendered/forward/poses.txt ]]; then
     run_eval translation "forward_stride${s}" "${s}" "${OUT}/rendered/forward" --stride "${s}"
   done
 fi
+
+# 4b. Front ends on the same frames, vote only: the native front end with guided and with global
+#     matching, the fixed-threshold global front end it replaced (min_fast_threshold = fast_threshold),
+#     OpenCV ORB + brute force and KLT; on the shared sequences and on the rendered dim room with
+#     3 px motion blur and JPEG 75 (also evaluated with every method).
+dim_dir="${OUT}/rendered/dim_blur3_jpeg75"
+rm -rf "${dim_dir}"
+if "${RENDER}" --preset dim --blur 3 --jpeg 75 --frames "${RENDER_FRAMES}" --out "${dim_dir}" \
+    >"${OUT}/logs/render_dim.log" 2>&1; then
+  run_eval rendered dim_blur3_jpeg75 0 "${dim_dir}"
+else
+  echo "[bench] render_sequence dim failed; see ${OUT}/logs/render_dim.log" >&2
+fi
+for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blur3_jpeg75; do
+  folder="${DATA_DIR}/${name}"
+  [[ ${name} == dim_* ]] && folder="${dim_dir}"
+  if [[ ! -d ${folder} ]]; then
+    echo "[bench] front ends: skipping ${name}: ${folder} not present"
+    continue
+  fi
+  run_eval front_end "${name}:guided" 0 "${folder}" --method vote
+  run_eval front_end "${name}:global" 0 "${folder}" --method vote --set matching=global
+  run_eval front_end "${name}:fixed_global" 0 "${folder}" --method vote --set matching=global --set min_fast_threshold=20
+  run_eval front_end "${name}:orb" 0 "${folder}" --method vote --front-end orb
+  run_eval front_end "${name}:klt" 0 "${folder}" --method vote --front-end klt
+done
 
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over
 #    matches (250..8 000 at 10 000 hypotheses), on the same real matches: kitti_turn with a denser

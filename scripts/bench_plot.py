@@ -5,7 +5,8 @@ results.csv, table.md and PNG plots. Run by scripts/bench.sh with Debian's pytho
 
 Inputs:
   --results  results.jsonl: evaluate's JSON objects plus group (shared, rendered, outliers,
-             translation), label and x (outlier fraction or frame stride) added by bench.sh
+             translation, front_end), label and x (outlier fraction or frame stride) added by
+             bench.sh
   --sweep    CSVs of `evaluate --timing-sweep` (series, method, backend, hypotheses, matches,
              real_fraction, ms_mean, ...), one per backend
   --gpu-dir  folder of CSVs from the GPU stand-alone bench; any with a `hypotheses` column and a
@@ -27,7 +28,7 @@ import numpy as np  # noqa: E402
 
 METHOD_ORDER = ["vote", "paper", "essential5", "fundamental8", "opengv_rotation_only",
                 "opengv_eigensolver", "opengv_5pt"]
-CSV_FIELDS = ["group", "label", "x", "dataset", "method", "backend", "frames", "invalid",
+CSV_FIELDS = ["group", "label", "x", "dataset", "method", "front_end", "matching", "backend", "frames", "invalid",
               "rot_rmse_deg", "rot_max_deg", "yaw_rmse_deg", "yaw_max_deg", "mean_rate_dps",
               "rate_rmse_dps", "ms_detect", "ms_describe", "ms_match", "ms_estimate", "ms_total",
               "matches_mean", "outliers", "stride", "true_rot_mean_deg", "true_trans_mean_m", "truth",
@@ -87,7 +88,63 @@ def method_table(runs, methods, cell):
     return out
 
 
+FRONT_END_VARIANTS = [("guided", "native, guided matching"), ("global", "native, global matching"),
+                      ("fixed_global", "fixed FAST threshold, global matching (before)"),
+                      ("orb", "OpenCV ORB + brute force"), ("klt", "goodFeaturesToTrack + pyramidal LK")]
+
+
+def front_end_table(rows):
+    """Markdown: per sequence, vote on each front end's matches (group front_end, label
+    '<sequence>:<variant>'), then the goal ratios measured in the same run."""
+    by_seq = {}
+    for r in rows:
+        if r.get("group") != "front_end" or r.get("method") != "vote":
+            continue
+        seq, _, variant = r["label"].partition(":")
+        by_seq.setdefault(seq, {})[variant] = r
+    if not by_seq:
+        return []
+    out = ["\n## Front ends on the same frames (vote) [ms per frame; deg]\n",
+           "front end = detect + describe + match; total = front end + estimate. Guided pairs: pairs "
+           "matched around the prior's prediction (the others: first pair, or fell back to global).\n",
+           "| sequence | front end | matches | detect | describe | match | front end | estimate | total | "
+           "rot RMSE / max | guided (fallbacks) |",
+           "|---" * 11 + "|"]
+
+    def fe_ms(r):
+        return sum(num(r.get("ms_" + k)) for k in ("detect", "describe", "match"))
+
+    goals = []
+    for seq, variants in by_seq.items():
+        for key, name in FRONT_END_VARIANTS:
+            r = variants.get(key)
+            if r is None:
+                continue
+            guided = (f"{r.get('guided_pairs', 0)} ({r.get('fallback_pairs', 0)})"
+                      if r.get("matching") == "guided" else "-")
+            out.append(f"| {seq} | {name} | {fmt(r.get('matches_mean'), 0)} | {fmt(r.get('ms_detect'), 2)} | "
+                       f"{fmt(r.get('ms_describe'), 2)} | {fmt(r.get('ms_match'), 2)} | {fmt(fe_ms(r), 2)} | "
+                       f"{fmt(r.get('ms_estimate'), 2)} | {fmt(r.get('ms_total'), 2)} | "
+                       f"{fmt(r['rot_rmse_deg'])} / {fmt(r['rot_max_deg'])} | {guided} |")
+        g = variants.get("guided")
+        if g is None:
+            continue
+        parts = []
+        if "global" in variants:
+            parts.append(f"guided / global front-end time {fmt(fe_ms(g) / fe_ms(variants['global']), 2)}")
+        for other in ("orb", "klt"):
+            if other in variants:
+                parts.append(f"{other} / native front-end time {fmt(fe_ms(variants[other]) / fe_ms(g), 1)}")
+        if "fixed_global" in variants:
+            parts.append(f"matches {fmt(g.get('matches_mean'), 0)} (before: "
+                         f"{fmt(variants['fixed_global'].get('matches_mean'), 0)})")
+        goals.append(f"- {seq}: " + "; ".join(parts) + f"; whole pipeline {fmt(num(g.get('ms_total')), 2)} ms")
+    return out + ["", "Measured ratios (same run):\n"] + goals
+
+
 def write_table(rows, methods, path, machine, sweep_rows):
+    fe_rows = front_end_table(rows)
+    rows = [r for r in rows if r.get("group") != "front_end"]
     runs = runs_of(rows)
     out = []
     out.append("# visual_gyro benchmark\n")
@@ -132,6 +189,7 @@ def write_table(rows, methods, path, machine, sweep_rows):
         cells = [fmt(by_method[m]["ms_estimate"], 2) if m in by_method else "-" for m in methods]
         out.append(f"| {label} | {fmt(any_row.get('matches_mean'), 0)} | {fmt(front, 1)} | "
                    + " | ".join(cells) + " |")
+    out.extend(fe_rows)
     if sweep_rows:
         out.extend(sweep_tables(sweep_rows))
     with open(path, "w") as f:
@@ -427,6 +485,7 @@ def main():
 
     write_csv(rows, os.path.join(a.out, "results.csv"))
     write_table(rows, methods, os.path.join(a.out, "table.md"), a.machine, sweep_rows)
+    rows = [r for r in rows if r.get("group") != "front_end"]  # their own table only
     bar_plot(rows, methods, "rot_rmse_deg", "rotation error RMSE [deg]",
              "accuracy per method and sequence", os.path.join(a.out, "accuracy.png"))
     bar_plot(rows, methods, "yaw_rmse_deg", "yaw error RMSE [deg]",

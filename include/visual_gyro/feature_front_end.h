@@ -7,7 +7,10 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
+
+#include "visual_gyro/camera_model.h"
 
 namespace visual_gyro {
 
@@ -17,6 +20,10 @@ using BriefDescriptor = std::array<uint64_t, 4>;
 /// Settings of the front end.
 struct FrontEndSettings {
   int fast_threshold = 20;      ///< FAST intensity threshold (grey levels)
+  /// Adaptive detection: when the corners at fast_threshold cannot fill max_features, every grid
+  /// cell with fewer corners than its share is detected again with this lower threshold (grey
+  /// levels; >= fast_threshold turns it off).
+  int min_fast_threshold = 5;
   int max_features = 1500;      ///< at most this many corners per frame
   int grid_cols = 8;            ///< bucketing grid: corners are spread over cols x rows cells
   int grid_rows = 6;
@@ -24,6 +31,18 @@ struct FrontEndSettings {
   double max_ratio = 0.8;        ///< ratio test: best / second-best distance must be below
   int max_hamming = 64;          ///< matches with a larger Hamming distance are dropped
   bool cross_check = true;       ///< keep only mutual best matches
+  /// "guided": compare each previous descriptor only with current ones near where the rotation
+  /// prior predicts it (global matching when there is no prior or guided finds too few);
+  /// "global": every descriptor against every other.
+  std::string matching = "guided";
+  /// Guided search radius around the predicted position [px] before the parallax and
+  /// prior-uncertainty terms.
+  double guided_radius_px = 20.0;
+  /// Radius growth per pixel of distance between the prediction and the principal point
+  /// (covers the radial parallax of near points under forward or backward motion) [px/px].
+  double guided_radius_growth = 0.1;
+  /// Guided matching with fewer matches than this falls back to global matching.
+  int guided_min_matches = 30;
 };
 
 /// "" when usable, else what is wrong.
@@ -53,7 +72,16 @@ struct FeatureMatch {
 /// Number of differing bits.
 int hammingDistance(const BriefDescriptor& a, const BriefDescriptor& b);
 
-/// FAST + grid bucketing + BRIEF + matching. Stateless apart from its settings; thread-safe.
+/// Where each previous keypoint is expected in the current image, and how far from there its match
+/// may lie. radii[i] < 0: keypoint i cannot be predicted (leaves the view); it is not matched.
+struct MatchPrediction {
+  std::vector<cv::Point2f> positions;  ///< predicted pixel in the current image
+  std::vector<float> radii;            ///< search radius [px]
+};
+
+/// FAST + grid bucketing + BRIEF + matching. Its working buffers are reused from call to call (no
+/// allocation once the frame size and counts have settled), so one instance must not be used
+/// from several threads at once.
 class FeatureFrontEnd {
  public:
   explicit FeatureFrontEnd(const FrontEndSettings& settings = FrontEndSettings());
@@ -61,19 +89,67 @@ class FeatureFrontEnd {
   /// FAST corners (non-max suppressed), strongest first within each grid cell, at most
   /// max_features in all, none closer than kBriefHalfPatch + 1 to the border. `gray` is CV_8UC1.
   /// Throws std::invalid_argument for an empty or non-8-bit image.
+  /// When the corners at fast_threshold cannot fill max_features, cells with fewer corners than
+  /// their share (max_features / cells) are detected again at min_fast_threshold, so dim and
+  /// low-contrast regions still get corners.
   std::vector<cv::Point2f> detect(const cv::Mat& gray) const;
+  /// detect() into `keypoints` (its capacity is reused).
+  void detect(const cv::Mat& gray, std::vector<cv::Point2f>* keypoints) const;
   /// BRIEF-256 of each keypoint on the smoothed image; keypoints too near the border are removed
   /// (so keypoints and descriptors stay aligned).
   FrameFeatures describe(const cv::Mat& gray, const std::vector<cv::Point2f>& keypoints) const;
+  /// describe() into `features` (its capacity is reused).
+  void describe(const cv::Mat& gray, const std::vector<cv::Point2f>& keypoints,
+                FrameFeatures* features) const;
   /// Brute-force Hamming matching previous -> current with ratio test, distance limit and
   /// cross-check.
   std::vector<FeatureMatch> match(const FrameFeatures& previous, const FrameFeatures& current) const;
+  /// match() into `matches` (its capacity is reused).
+  void match(const FrameFeatures& previous, const FrameFeatures& current,
+             std::vector<FeatureMatch>* matches) const;
+
+  /// Predicts each previous keypoint in the current image under the rotation `rotation`
+  /// (b_prev ~ R b_cur, camera optical frame): the infinite homography, through the camera model
+  /// so distortion is handled. Radius = guided_radius_px + guided_radius_growth * |prediction -
+  /// principal point| + uncertainty_rad * focal length. `previous_bearings` are the unit bearings
+  /// of the previous keypoints. Throws std::invalid_argument for a non-finite rotation or
+  /// uncertainty.
+  void predict(const CameraModel& camera, const Eigen::Matrix3d& rotation, double uncertainty_rad,
+               const std::vector<Eigen::Vector3d>& previous_bearings,
+               MatchPrediction* prediction) const;
+  /// Guided matching: previous keypoint i is compared only with the current keypoints within
+  /// prediction.radii[i] of prediction.positions[i] (found through a grid index). The ratio test
+  /// and the cross-check keep their meaning among these candidates: best against second best in
+  /// the window, and mutual best over the previous keypoints whose windows hold the current one.
+  void matchGuided(const FrameFeatures& previous, const FrameFeatures& current,
+                   const MatchPrediction& prediction, std::vector<FeatureMatch>* matches) const;
 
   const FrontEndSettings& settings() const { return settings_; }
   void setSettings(const FrontEndSettings& settings) { settings_ = settings; }
 
  private:
+  /// Reused buffers (see the class comment).
+  struct Workspace {
+    std::vector<cv::KeyPoint> corners, cell_corners;
+    struct Candidate {  // a detected corner: sort key (strongest first), grid cell, position
+      uint64_t key;
+      int cell;
+      cv::Point2f point;
+    };
+    std::vector<Candidate> candidates;
+    std::vector<int> cell_count;
+    std::vector<uint8_t> redetect, chosen;
+    cv::Mat smoothed;
+    std::vector<int> row_best, row_best_d, row_second_d, col_best, col_best_d;
+    // Current keypoints sorted by grid cell (guided matching): cell starts, original indices,
+    // positions and descriptors in sorted order.
+    std::vector<int> grid_start, grid_items, grid_cursor;
+    std::vector<cv::Point2f> grid_points;
+    std::vector<BriefDescriptor> grid_descriptors;
+  };
+
   FrontEndSettings settings_;
+  mutable Workspace work_;
 };
 
 }  // namespace visual_gyro

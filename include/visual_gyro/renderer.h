@@ -12,9 +12,10 @@ namespace visual_gyro {
 /// What to render.
 struct RenderSettings {
   /// "drive" (car-like forward motion with left and right turns), "handheld" (rotation only with
-  /// small jitter), "forward" (straight forward drive, no rotation to speak of), "drone_near" (a
-  /// hand-shaken camera 1-2 m from textured structure: up to ~3 deg and 2-5 cm per frame at
-  /// 20 Hz, strong parallax; render it at rate_hz = 20).
+  /// small jitter), "forward" (straight forward drive, no rotation to speak of), "dim" (the
+  /// handheld motion in a dim room of large plain walls, a few doors and boxes, all within 30 grey
+  /// levels), "drone_near" (a hand-shaken camera 1-2 m from textured structure: up to ~3 deg and
+  /// 2-5 cm per frame at 20 Hz, strong parallax; render it at rate_hz = 20).
   std::string preset = "drive";
   int frames = 60;
   int width = 640;
@@ -23,6 +24,13 @@ struct RenderSettings {
   double rate_hz = 10.0;       ///< frame rate: stamps are k / rate_hz [s]
   double noise_sigma = 2.0;    ///< Gaussian pixel noise (grey levels)
   uint64_t seed = 7;           ///< texture and noise seed
+  // Degradations, applied in this order to the rendered image: contrast, motion blur, noise, JPEG.
+  double contrast = 1.0;       ///< grey levels scaled about the image mean by this factor (> 0)
+  /// Motion blur: a line kernel this long [px], along the image motion of the principal point
+  /// over one frame interval centred on the frame (so the pose stays the frame's); 0 = none.
+  /// renderView() knows no motion and blurs along +x.
+  double blur_px = 0.0;
+  int jpeg_quality = 0;        ///< JPEG-compressed and decoded at this quality (1..100); 0 = none
 
   /// Sets the image size [px] and a pinhole camera with fx = fy = `focal` [px] whose principal
   /// point is the image centre ((width - 1) / 2, (height - 1) / 2).

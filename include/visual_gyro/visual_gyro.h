@@ -33,6 +33,10 @@ struct FrameResult {
   /// Covariance of angular_velocity [(rad/s)^2] = rotation covariance / dt^2.
   Eigen::Matrix3d angular_velocity_covariance = Eigen::Matrix3d::Identity();
   int features = 0;                 ///< keypoints described in this frame
+  /// How this frame was matched: "guided" (around the rotation prior's prediction), "global"
+  /// (no prior, or matching = global), "global_fallback" (guided found too few matches, or its
+  /// matches gave no valid estimate); "" when not matched (first frame, rejected image).
+  std::string matching;
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
@@ -97,6 +101,14 @@ class VisualGyro {
   std::string backendName() const { return estimator_->backendName(); }
 
  private:
+  /// Matches previous_features_ to features_ into matches_: guided by `prior` when usable, else
+  /// (or when guided finds too few) global. Sets matching_.
+  void matchFrames(const RotationPrior& prior);
+  /// Copies the pixels and bearings of matches_ into `result` (in match order).
+  void collectMatches(FrameResult* result) const;
+  /// Records how far `prior` was from `estimate` (see prior_uncertainty_rad_).
+  void updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate);
+
   CameraModel camera_;
   VisualGyroSettings settings_;
   FeatureFrontEnd front_end_;
@@ -107,6 +119,17 @@ class VisualGyro {
   FrameFeatures previous_features_;
   std::vector<Eigen::Vector3d> previous_keypoint_bearings_;
   PriorTracker prior_;
+  /// How far the last prior was from that frame's estimate [rad] (identity counts as the prior
+  /// when there was none): widens the guided search.
+  double prior_uncertainty_rad_ = 0.0;
+  std::string matching_;  // how the last frame was matched (FrameResult::matching)
+  // Per-frame buffers, reused (swapped with the previous frame's) so that the steady state does not
+  // allocate in the front end.
+  std::vector<cv::Point2f> corners_;
+  FrameFeatures features_;
+  std::vector<Eigen::Vector3d> bearings_;
+  MatchPrediction prediction_;
+  std::vector<FeatureMatch> matches_;
 };
 
 }  // namespace visual_gyro

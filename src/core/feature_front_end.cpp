@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <opencv2/features2d.hpp>
@@ -89,16 +90,16 @@ std::vector<std::array<int8_t, 4>> buildBriefPattern() {
   return pairs;
 }
 
-struct Candidate {
-  cv::Point2f point;
-  float response;
-};
-
-/// Strongest first; ties broken by position so the selection does not depend on sort stability.
-bool stronger(const Candidate& a, const Candidate& b) {
-  if (a.response != b.response) return a.response > b.response;
-  if (a.point.y != b.point.y) return a.point.y < b.point.y;
-  return a.point.x < b.point.x;
+/// Orders detected corners strongest first, ties broken by position (smaller y, then smaller x) so the
+/// selection does not depend on sort stability: the response's float bits (order-preserving for
+/// the non-negative FAST scores) above the complemented integer pixel coordinates. One integer
+/// comparison instead of three float ones keeps the sorts cheap.
+uint64_t candidateKey(float response, const cv::Point2f& point) {
+  uint32_t bits;
+  std::memcpy(&bits, &response, sizeof(bits));
+  const uint64_t y = 0xFFFF - static_cast<uint64_t>(std::clamp(static_cast<int>(point.y), 0, 0xFFFF));
+  const uint64_t x = 0xFFFF - static_cast<uint64_t>(std::clamp(static_cast<int>(point.x), 0, 0xFFFF));
+  return (static_cast<uint64_t>(bits) << 32) | (y << 16) | x;
 }
 
 constexpr int kNoMatch = -1;
@@ -167,6 +168,113 @@ __attribute__((target("popcnt"))) void bruteForcePopcnt(const BriefDescriptor* p
 }
 #endif
 
+/// Guided search: previous descriptor i against the current descriptors in the grid cells its
+/// window overlaps, kept when within the window's radius. The current keypoints are stored in
+/// row-major cell order, so the cells of one grid row that a window spans are one contiguous run:
+/// one loop per grid row, no per-cell overhead. Same bookkeeping as bruteForceKernel (row best and
+/// second best, column best), with columns in that sorted order. Inlined into one function per
+/// instruction set, like bruteForceKernel.
+struct GuidedGrid {
+  const int* start;                   // cell c holds sorted entries start[c] .. start[c + 1] - 1
+  const BriefDescriptor* descriptors;  // current descriptors in sorted order
+  const cv::Point2f* points;           // current keypoints in sorted order
+  int n;                               // number of current keypoints
+  int cols, rows;
+  float cell_size;
+};
+
+__attribute__((always_inline)) inline void guidedKernel(
+    const BriefDescriptor* prev, int n_prev, const cv::Point2f* predicted, const float* radii,
+    const GuidedGrid& grid, int* row_best, int* row_best_d, int* row_second_d, int* col_best,
+    int* col_best_d) {
+  for (int k = 0; k < grid.n; ++k) {
+    col_best[k] = kNoMatch;
+    col_best_d[k] = std::numeric_limits<int>::max();
+  }
+  const float inv_cell = 1.0f / grid.cell_size;
+  for (int i = 0; i < n_prev; ++i) {
+    int best = std::numeric_limits<int>::max(), second = std::numeric_limits<int>::max();
+    int best_k = kNoMatch;
+    const float r = radii[i];
+    if (r >= 0.0f) {
+      const float px = predicted[i].x, py = predicted[i].y, r2 = r * r;
+      const int cx0 = std::max(0, static_cast<int>(std::floor((px - r) * inv_cell)));
+      const int cx1 = std::min(grid.cols - 1, static_cast<int>(std::floor((px + r) * inv_cell)));
+      const int cy0 = std::max(0, static_cast<int>(std::floor((py - r) * inv_cell)));
+      const int cy1 = std::min(grid.rows - 1, static_cast<int>(std::floor((py + r) * inv_cell)));
+      const uint64_t a0 = prev[i][0], a1 = prev[i][1], a2 = prev[i][2], a3 = prev[i][3];
+      for (int cy = cy0; cy <= cy1 && cx0 <= cx1; ++cy) {
+        const int k_end = grid.start[cy * grid.cols + cx1 + 1];
+        for (int k = grid.start[cy * grid.cols + cx0]; k < k_end; ++k) {
+          const float dx = grid.points[k].x - px, dy = grid.points[k].y - py;
+          const BriefDescriptor& b = grid.descriptors[k];
+          // Outside the circle counts as no candidate; a select rather than a branch, since about
+          // a fifth of a row's run lies outside and the branch would be unpredictable.
+          const int hamming = __builtin_popcountll(a0 ^ b[0]) + __builtin_popcountll(a1 ^ b[1]) +
+                              __builtin_popcountll(a2 ^ b[2]) + __builtin_popcountll(a3 ^ b[3]);
+          const int d = dx * dx + dy * dy > r2 ? std::numeric_limits<int>::max() : hamming;
+          if (d < second) {
+            if (d < best) {
+              second = best;
+              best = d;
+              best_k = k;
+            } else {
+              second = d;
+            }
+          }
+          if (d < col_best_d[k]) {
+            col_best_d[k] = d;
+            col_best[k] = i;
+          }
+        }
+      }
+    }
+    row_best[i] = best_k;
+    row_best_d[i] = best;
+    row_second_d[i] = second;
+  }
+}
+
+using GuidedFn = void (*)(const BriefDescriptor*, int, const cv::Point2f*, const float*,
+                          const GuidedGrid&, int*, int*, int*, int*, int*);
+
+void guidedGeneric(const BriefDescriptor* prev, int n_prev, const cv::Point2f* predicted,
+                   const float* radii, const GuidedGrid& grid, int* row_best, int* row_best_d,
+                   int* row_second_d, int* col_best, int* col_best_d) {
+  guidedKernel(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
+               col_best_d);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("popcnt"))) void guidedPopcnt(const BriefDescriptor* prev, int n_prev,
+                                                    const cv::Point2f* predicted,
+                                                    const float* radii, const GuidedGrid& grid,
+                                                    int* row_best, int* row_best_d,
+                                                    int* row_second_d, int* col_best,
+                                                    int* col_best_d) {
+  guidedKernel(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
+               col_best_d);
+}
+#endif
+
+bool cpuHasPopcnt() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("popcnt");
+#else
+  // aarch64 has a vector popcount (cnt) in its baseline, which the compiler uses for
+  // __builtin_popcountll without any flag.
+  return false;
+#endif
+}
+
+GuidedFn selectGuidedKernel() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasPopcnt()) return guidedPopcnt;
+#endif
+  return guidedGeneric;
+}
+
 KernelFn selectKernel() {
 #if defined(__x86_64__) && defined(__GNUC__)
   __builtin_cpu_init();
@@ -192,6 +300,18 @@ std::string validateFrontEndSettings(const FrontEndSettings& s) {
     why << "max_ratio must be in (0, 1], got " << s.max_ratio;
   } else if (s.max_hamming < 0 || s.max_hamming > 256) {
     why << "max_hamming must be in [0, 256] bits, got " << s.max_hamming;
+  } else if (s.min_fast_threshold < 1 || s.min_fast_threshold > 254) {
+    why << "min_fast_threshold must be in [1, 254] grey levels, got " << s.min_fast_threshold;
+  } else if (s.matching != "guided" && s.matching != "global") {
+    why << "matching must be 'guided' or 'global', got '" << s.matching << "'";
+  } else if (!std::isfinite(s.guided_radius_px) || s.guided_radius_px < 1.0 ||
+             s.guided_radius_px > 10000.0) {
+    why << "guided_radius_px must be in [1, 10000] px, got " << s.guided_radius_px;
+  } else if (!std::isfinite(s.guided_radius_growth) || s.guided_radius_growth < 0.0 ||
+             s.guided_radius_growth > 10.0) {
+    why << "guided_radius_growth must be in [0, 10] px/px, got " << s.guided_radius_growth;
+  } else if (s.guided_min_matches < 0) {
+    why << "guided_min_matches must not be negative, got " << s.guided_min_matches;
   }
   return why.str();
 }
@@ -214,70 +334,146 @@ FeatureFrontEnd::FeatureFrontEnd(const FrontEndSettings& settings) : settings_(s
 }
 
 std::vector<cv::Point2f> FeatureFrontEnd::detect(const cv::Mat& gray) const {
+  std::vector<cv::Point2f> keypoints;
+  detect(gray, &keypoints);
+  return keypoints;
+}
+
+void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keypoints) const {
   checkImage(gray, "detect");
   checkSettings(settings_);  // setSettings() does not validate
+  keypoints->clear();
   const int width = gray.cols, height = gray.rows;
   // No pixel can keep the border distance: nothing to detect (not an error).
-  if (width < 2 * kDetectBorder + 1 || height < 2 * kDetectBorder + 1) return {};
+  if (width < 2 * kDetectBorder + 1 || height < 2 * kDetectBorder + 1) return;
 
-  std::vector<cv::KeyPoint> corners;
-  cv::FAST(gray, corners, settings_.fast_threshold, /*nonmaxSuppression=*/true,
+  Workspace& w = work_;
+  using Candidate = Workspace::Candidate;
+  cv::FAST(gray, w.corners, settings_.fast_threshold, /*nonmaxSuppression=*/true,
            cv::FastFeatureDetector::TYPE_9_16);
 
   const int cols = settings_.grid_cols, rows = settings_.grid_rows;
-  std::vector<std::vector<Candidate>> cells(static_cast<size_t>(cols) * rows);
-  for (const cv::KeyPoint& kp : corners) {
-    const float x = kp.pt.x, y = kp.pt.y;
-    if (x < kDetectBorder || y < kDetectBorder || x > width - 1 - kDetectBorder ||
-        y > height - 1 - kDetectBorder) {
-      continue;
-    }
+  const int n_cells = cols * rows;
+  auto inside = [&](float x, float y) {
+    return !(x < kDetectBorder || y < kDetectBorder || x > width - 1 - kDetectBorder ||
+             y > height - 1 - kDetectBorder);
+  };
+  auto cellOf = [&](float x, float y) {
     const int cx = std::min(cols - 1, static_cast<int>(x * cols / width));
     const int cy = std::min(rows - 1, static_cast<int>(y * rows / height));
-    cells[static_cast<size_t>(cy) * cols + cx].push_back({kp.pt, kp.response});
+    return cy * cols + cx;
+  };
+  w.candidates.clear();
+  w.cell_count.assign(n_cells, 0);
+  for (const cv::KeyPoint& kp : w.corners) {
+    if (!inside(kp.pt.x, kp.pt.y)) continue;
+    const int cell = cellOf(kp.pt.x, kp.pt.y);
+    w.candidates.push_back({candidateKey(kp.response, kp.pt), cell, kp.pt});
+    ++w.cell_count[cell];
+  }
+
+  const size_t budget = static_cast<size_t>(settings_.max_features);
+  const int per_cell = static_cast<int>(budget / n_cells);
+
+  // Adaptive threshold: when the strong corners cannot fill the budget, each cell short of its
+  // share is detected again at the floor threshold, as ORB-SLAM does, so dim or low-contrast
+  // regions still contribute corners while textured ones keep only their strong corners. (When
+  // they can, the budget is filled with strong corners and a second FAST pass would only swap some
+  // of them for weak ones, at the cost of a low-threshold pass over every sparse cell.) FAST's
+  // score is the largest threshold at which a pixel is still a corner, so the corners that passed
+  // the first threshold are found again (and ranked first).
+  if (settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0 &&
+      w.candidates.size() < budget) {
+    // FAST needs 3 pixels around a candidate: the cell is widened by that much, then only corners
+    // inside the cell itself are kept.
+    constexpr int kFastRadius = 3;
+    auto searchArea = [&](int cell) {
+      const int cx = cell % cols, cy = cell / cols;
+      // Cell bounds as cellOf() assigns them: x in [x0, x1), y in [y0, y1).
+      const int x0 = (cx * width + cols - 1) / cols, x1 = ((cx + 1) * width + cols - 1) / cols;
+      const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
+      const int rx0 = std::max(0, x0 - kFastRadius), ry0 = std::max(0, y0 - kFastRadius);
+      const int rx1 = std::min(width, x1 + kFastRadius), ry1 = std::min(height, y1 + kFastRadius);
+      return cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0);
+    };
+    // The short cells' strong corners are replaced by everything found at the floor (a cell too
+    // small for FAST keeps what it has).
+    w.redetect.assign(n_cells, 0);
+    for (int c = 0; c < n_cells; ++c) {
+      const cv::Rect area = searchArea(c);
+      w.redetect[c] = w.cell_count[c] < per_cell && area.width >= 2 * kFastRadius + 1 &&
+                      area.height >= 2 * kFastRadius + 1;
+    }
+    w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
+                                      [&](const Candidate& c) { return w.redetect[c.cell] != 0; }),
+                       w.candidates.end());
+    for (int cell = 0; cell < n_cells; ++cell) {
+      if (!w.redetect[cell]) continue;
+      const cv::Rect area = searchArea(cell);
+      cv::FAST(gray(area), w.cell_corners, settings_.min_fast_threshold,
+               /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+      for (const cv::KeyPoint& kp : w.cell_corners) {
+        const cv::Point2f p(kp.pt.x + area.x, kp.pt.y + area.y);
+        if (!inside(p.x, p.y) || cellOf(p.x, p.y) != cell) continue;
+        w.candidates.push_back({candidateKey(kp.response, p), cell, p});
+      }
+    }
   }
 
   // Bucketing: an equal share per cell first, so texture-rich regions cannot take the whole
   // budget; the unused share of sparse cells then goes to the strongest corners left anywhere.
-  const size_t budget = static_cast<size_t>(settings_.max_features);
-  const size_t per_cell = budget / cells.size();
-  std::vector<Candidate> selected, leftovers;
-  selected.reserve(budget);
-  for (auto& cell : cells) {
-    std::sort(cell.begin(), cell.end(), stronger);
-    const size_t keep = std::min(per_cell, cell.size());
-    selected.insert(selected.end(), cell.begin(), cell.begin() + keep);
-    leftovers.insert(leftovers.end(), cell.begin() + keep, cell.end());
+  // One sort, strongest first: a cell's share is its first corners in that order, the leftovers
+  // stay in that order for the fill, and the selection comes out strongest first.
+  std::sort(w.candidates.begin(), w.candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
+  const size_t n = w.candidates.size();
+  w.chosen.assign(n, 0);
+  w.cell_count.assign(n_cells, 0);
+  size_t selected = 0;
+  for (size_t i = 0; i < n; ++i) {
+    int& taken = w.cell_count[w.candidates[i].cell];
+    if (taken < per_cell) {
+      ++taken;
+      w.chosen[i] = 1;
+      ++selected;
+    }
   }
-  if (selected.size() < budget && !leftovers.empty()) {
-    const size_t fill = std::min(budget - selected.size(), leftovers.size());
-    std::partial_sort(leftovers.begin(), leftovers.begin() + fill, leftovers.end(), stronger);
-    selected.insert(selected.end(), leftovers.begin(), leftovers.begin() + fill);
+  for (size_t i = 0; i < n && selected < budget; ++i) {
+    if (w.chosen[i]) continue;
+    w.chosen[i] = 1;
+    ++selected;
   }
-  std::sort(selected.begin(), selected.end(), stronger);
 
-  std::vector<cv::Point2f> keypoints;
-  keypoints.reserve(selected.size());
-  for (const Candidate& c : selected) keypoints.push_back(c.point);
-  return keypoints;
+  keypoints->reserve(selected);
+  for (size_t i = 0; i < n; ++i)
+    if (w.chosen[i]) keypoints->push_back(w.candidates[i].point);
 }
 
 FrameFeatures FeatureFrontEnd::describe(const cv::Mat& gray,
                                         const std::vector<cv::Point2f>& keypoints) const {
+  FrameFeatures features;
+  describe(gray, keypoints, &features);
+  return features;
+}
+
+void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2f>& keypoints,
+                               FrameFeatures* features) const {
   checkImage(gray, "describe");
   checkSettings(settings_);
-  FrameFeatures features;
+  features->keypoints.clear();
+  features->descriptors.clear();
   const int width = gray.cols, height = gray.rows;
   if (keypoints.empty() || width < 2 * kBriefHalfPatch + 1 || height < 2 * kBriefHalfPatch + 1) {
-    return features;
+    return;
   }
 
   cv::Mat smoothed;
   if (settings_.smoothing_sigma > 0.0) {
     // Kernel covering +-3 sigma, odd.
     const int ksize = 2 * static_cast<int>(std::ceil(3.0 * settings_.smoothing_sigma)) + 1;
-    cv::GaussianBlur(gray, smoothed, cv::Size(ksize, ksize), settings_.smoothing_sigma,
+    cv::GaussianBlur(gray, work_.smoothed, cv::Size(ksize, ksize), settings_.smoothing_sigma,
                      settings_.smoothing_sigma, cv::BORDER_REFLECT_101);
+    smoothed = work_.smoothed;
   } else {
     smoothed = gray;
   }
@@ -291,8 +487,8 @@ FrameFeatures FeatureFrontEnd::describe(const cv::Mat& gray,
     off2[i] = pattern[i][3] * step + pattern[i][2];
   }
 
-  features.keypoints.reserve(keypoints.size());
-  features.descriptors.reserve(keypoints.size());
+  features->keypoints.reserve(keypoints.size());
+  features->descriptors.reserve(keypoints.size());
   for (const cv::Point2f& kp : keypoints) {
     if (!std::isfinite(kp.x) || !std::isfinite(kp.y)) continue;
     const long x = std::lround(kp.x), y = std::lround(kp.y);
@@ -310,45 +506,167 @@ FrameFeatures FeatureFrontEnd::describe(const cv::Mat& gray,
       }
       descriptor[word] = bits;
     }
-    features.keypoints.push_back(kp);
-    features.descriptors.push_back(descriptor);
+    features->keypoints.push_back(kp);
+    features->descriptors.push_back(descriptor);
   }
-  return features;
 }
 
-std::vector<FeatureMatch> FeatureFrontEnd::match(const FrameFeatures& previous,
-                                                 const FrameFeatures& current) const {
-  checkSettings(settings_);
+namespace {
+
+void checkFeatures(const FrameFeatures& previous, const FrameFeatures& current, const char* where) {
   if (previous.keypoints.size() != previous.descriptors.size() ||
       current.keypoints.size() != current.descriptors.size()) {
-    throw std::invalid_argument(
-        "FeatureFrontEnd::match: keypoints and descriptors differ in count (use describe())");
+    throw std::invalid_argument(std::string("FeatureFrontEnd::") + where +
+                                ": keypoints and descriptors differ in count (use describe())");
   }
-  std::vector<FeatureMatch> matches;
-  const int n_prev = static_cast<int>(previous.descriptors.size());
-  const int n_cur = static_cast<int>(current.descriptors.size());
-  if (n_prev == 0 || n_cur == 0) return matches;
+}
 
-  static const KernelFn kernel = selectKernel();
-  std::vector<int> row_best(n_prev), row_best_d(n_prev), row_second_d(n_prev);
-  std::vector<int> col_best(n_cur), col_best_d(n_cur);
-  kernel(previous.descriptors.data(), n_prev, current.descriptors.data(), n_cur, row_best.data(),
-         row_best_d.data(), row_second_d.data(), col_best.data(), col_best_d.data());
-
-  matches.reserve(std::min(n_prev, n_cur));
+/// Ratio test, distance limit and cross-check on the kernels' row and column bests.
+/// `current_index` maps a column to the current keypoint's index (nullptr: the same).
+void collectMatches(const FrontEndSettings& settings, int n_prev, const int* row_best,
+                    const int* row_best_d, const int* row_second_d, const int* col_best,
+                    const int* current_index, std::vector<FeatureMatch>* matches) {
   for (int i = 0; i < n_prev; ++i) {
     const int j = row_best[i];
     const int best = row_best_d[i];
-    if (j == kNoMatch || best > settings_.max_hamming) continue;
+    if (j == kNoMatch || best > settings.max_hamming) continue;
     // Ratio test; with a single candidate there is no second best and nothing to be ambiguous with.
     const int second = row_second_d[i];
-    if (second != std::numeric_limits<int>::max() && !(best < settings_.max_ratio * second)) {
+    if (second != std::numeric_limits<int>::max() && !(best < settings.max_ratio * second)) {
       continue;
     }
-    if (settings_.cross_check && col_best[j] != i) continue;
-    matches.push_back({i, j, best});
+    if (settings.cross_check && col_best[j] != i) continue;
+    matches->push_back({i, current_index ? current_index[j] : j, best});
   }
+}
+
+}  // namespace
+
+std::vector<FeatureMatch> FeatureFrontEnd::match(const FrameFeatures& previous,
+                                                 const FrameFeatures& current) const {
+  std::vector<FeatureMatch> matches;
+  match(previous, current, &matches);
   return matches;
+}
+
+void FeatureFrontEnd::match(const FrameFeatures& previous, const FrameFeatures& current,
+                            std::vector<FeatureMatch>* matches) const {
+  checkSettings(settings_);
+  checkFeatures(previous, current, "match");
+  matches->clear();
+  const int n_prev = static_cast<int>(previous.descriptors.size());
+  const int n_cur = static_cast<int>(current.descriptors.size());
+  if (n_prev == 0 || n_cur == 0) return;
+
+  static const KernelFn kernel = selectKernel();
+  Workspace& w = work_;
+  w.row_best.resize(n_prev);
+  w.row_best_d.resize(n_prev);
+  w.row_second_d.resize(n_prev);
+  w.col_best.resize(n_cur);
+  w.col_best_d.resize(n_cur);
+  kernel(previous.descriptors.data(), n_prev, current.descriptors.data(), n_cur, w.row_best.data(),
+         w.row_best_d.data(), w.row_second_d.data(), w.col_best.data(), w.col_best_d.data());
+  collectMatches(settings_, n_prev, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
+                 w.col_best.data(), nullptr, matches);
+}
+
+void FeatureFrontEnd::predict(const CameraModel& camera, const Eigen::Matrix3d& rotation,
+                              double uncertainty_rad,
+                              const std::vector<Eigen::Vector3d>& previous_bearings,
+                              MatchPrediction* prediction) const {
+  checkSettings(settings_);
+  if (!rotation.allFinite()) throw std::invalid_argument("FeatureFrontEnd::predict: non-finite rotation");
+  if (!std::isfinite(uncertainty_rad) || uncertainty_rad < 0.0) {
+    throw std::invalid_argument("FeatureFrontEnd::predict: uncertainty must be finite and >= 0");
+  }
+  const size_t n = previous_bearings.size();
+  prediction->positions.resize(n);
+  prediction->radii.resize(n);
+  // b_prev ~ R b_cur, so a far point seen along b_prev is seen along R^T b_prev now.
+  const Eigen::Matrix3d to_current = rotation.transpose();
+  const double focal = std::max(camera.fx(), camera.fy());
+  const double base = settings_.guided_radius_px + uncertainty_rad * focal;
+  const double width = camera.width(), height = camera.height();
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d p = camera.project(to_current * previous_bearings[i]);
+    const double radius =
+        base + settings_.guided_radius_growth * std::hypot(p.x() - camera.cx(), p.y() - camera.cy());
+    // Outside the image by more than the radius, behind the camera or not projectable: no search.
+    const bool usable = p.allFinite() && p.x() > -radius && p.y() > -radius &&
+                        p.x() < width - 1 + radius && p.y() < height - 1 + radius;
+    prediction->positions[i] = usable ? cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()))
+                                      : cv::Point2f(0.f, 0.f);
+    prediction->radii[i] = usable ? static_cast<float>(radius) : -1.0f;
+  }
+}
+
+void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeatures& current,
+                                  const MatchPrediction& prediction,
+                                  std::vector<FeatureMatch>* matches) const {
+  checkSettings(settings_);
+  checkFeatures(previous, current, "matchGuided");
+  if (prediction.positions.size() != previous.keypoints.size() ||
+      prediction.radii.size() != previous.keypoints.size()) {
+    throw std::invalid_argument(
+        "FeatureFrontEnd::matchGuided: the prediction must hold one position and radius per "
+        "previous keypoint (use predict())");
+  }
+  matches->clear();
+  const int n_prev = static_cast<int>(previous.descriptors.size());
+  const int n_cur = static_cast<int>(current.descriptors.size());
+  if (n_prev == 0 || n_cur == 0) return;
+
+  // Grid index of the current keypoints: a counting sort into cells, row-major, with the
+  // keypoints and descriptors copied in that order. The cell size only trades grid rows visited
+  // against keypoints tested; the result does not depend on it.
+  Workspace& w = work_;
+  constexpr float kCellSize = 16.0f;
+  float max_x = 0.f, max_y = 0.f;
+  for (const cv::Point2f& p : current.keypoints) {
+    max_x = std::max(max_x, p.x);
+    max_y = std::max(max_y, p.y);
+  }
+  GuidedGrid grid;
+  grid.cell_size = kCellSize;
+  grid.cols = static_cast<int>(max_x / kCellSize) + 1;
+  grid.rows = static_cast<int>(max_y / kCellSize) + 1;
+  grid.n = n_cur;
+  const size_t n_cells = static_cast<size_t>(grid.cols) * grid.rows;
+  w.grid_start.assign(n_cells + 1, 0);
+  auto cellOf = [&](const cv::Point2f& p) {
+    // Keypoints from describe() lie inside the image; a negative one is clamped to the first cell.
+    const int cx = std::clamp(static_cast<int>(p.x / kCellSize), 0, grid.cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y / kCellSize), 0, grid.rows - 1);
+    return static_cast<size_t>(cy) * grid.cols + cx;
+  };
+  for (const cv::Point2f& p : current.keypoints) ++w.grid_start[cellOf(p) + 1];
+  for (size_t c = 0; c < n_cells; ++c) w.grid_start[c + 1] += w.grid_start[c];
+  w.grid_cursor.assign(w.grid_start.begin(), w.grid_start.end() - 1);
+  w.grid_items.resize(n_cur);
+  w.grid_points.resize(n_cur);
+  w.grid_descriptors.resize(n_cur);
+  for (int j = 0; j < n_cur; ++j) {
+    const int k = w.grid_cursor[cellOf(current.keypoints[j])]++;
+    w.grid_items[k] = j;
+    w.grid_points[k] = current.keypoints[j];
+    w.grid_descriptors[k] = current.descriptors[j];
+  }
+  grid.start = w.grid_start.data();
+  grid.points = w.grid_points.data();
+  grid.descriptors = w.grid_descriptors.data();
+
+  static const GuidedFn kernel = selectGuidedKernel();
+  w.row_best.resize(n_prev);
+  w.row_best_d.resize(n_prev);
+  w.row_second_d.resize(n_prev);
+  w.col_best.resize(n_cur);
+  w.col_best_d.resize(n_cur);
+  kernel(previous.descriptors.data(), n_prev, prediction.positions.data(), prediction.radii.data(),
+         grid, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(), w.col_best.data(),
+         w.col_best_d.data());
+  collectMatches(settings_, n_prev, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
+                 w.col_best.data(), w.grid_items.data(), matches);
 }
 
 }  // namespace visual_gyro

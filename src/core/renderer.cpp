@@ -336,7 +336,7 @@ double wave(double amplitude, double frequency_hz, double phase, double t) {
 class Trajectory {
  public:
   Trajectory(const std::string& preset, double duration) : preset_(preset) {
-    if (preset_ == "handheld" || preset_ == "drone_near") return;
+    if (isRoom() || preset_ == "drone_near") return;
     // Drive: integrate the heading into positions once (midpoint rule, 2 ms steps), covering a
     // stretch before the first and after the last frame so the scene extends past them.
     t_min_ = -3.0;
@@ -372,7 +372,7 @@ class Trajectory {
   }
 
   void pose(double t, Eigen::Matrix3d* orientation, Eigen::Vector3d* position) const {
-    if (preset_ == "handheld") {
+    if (isRoom()) {
       // Smooth rotation about all three axes, peak rates about 30, 23 and 19 deg/s (up to ~40 deg/s
       // together), and millimetre translation jitter (a hand is never still).
       *orientation = yawPitchRoll(wave(deg(16.0), 0.30, 0.4, t), wave(deg(8.0), 0.45, 1.3, t),
@@ -404,6 +404,9 @@ class Trajectory {
   }
 
  private:
+  /// Room presets: the hand-held rotation about a fixed point.
+  bool isRoom() const { return preset_ == "handheld" || preset_ == "dim"; }
+
   static constexpr double kStep = 0.002;  // [s]
   std::string preset_;
   double t_min_ = 0.0;
@@ -591,10 +594,70 @@ void buildNearScene(const RenderSettings& settings, Scene* scene) {
   }
 }
 
+/// The dim room: the hand-held room's size, with large plain walls of faint texture, a few
+/// doors and boxes, every grey level within kDimLow..kDimHigh (30 levels), as in a dim indoor
+/// room filmed with a consumer camera.
+constexpr double kDimLow = 45.0, kDimHigh = 75.0;
+
+void buildDimRoomScene(const RenderSettings& settings, Scene* scene) {
+  SceneBuilder builder(scene, settings.seed);
+  Rng rng(mixSeed(settings.seed, 0x44494Dull));
+  const double x0 = -3.2, x1 = 3.8, y0 = -1.6, y1 = 1.4, z0 = -4.5, z1 = 6.5;
+  const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY(), uz = Eigen::Vector3d::UnitZ();
+  // Plain paint: weak shading and faint marks (scuffs, switches, pictures), all within the band.
+  TextureStyle wall;
+  wall.mean_lo = 57.0;
+  wall.mean_hi = 63.0;
+  wall.noise_amplitude = 3.0;
+  wall.fine_amplitude = 1.5;
+  wall.shape_density = 0.6;
+  wall.min_shape = 4.0;
+  wall.max_shape = 60.0;
+  wall.shape_contrast = 14.0;
+  const float plain = 1.0f;  // no per-plane brightness change: the contrast stays in the textures
+  builder.addPlane({x0, y1, z0}, ux, uz, x1 - x0, z1 - z0, 2.5, wall, false, plain);  // floor
+  builder.addPlane({x0, y0, z0}, ux, uz, x1 - x0, z1 - z0, 3.0, wall, false, plain);  // ceiling
+  builder.addPlane({x0, y0, z1}, ux, uy, x1 - x0, y1 - y0, 6.5, wall, false, plain);  // front
+  builder.addPlane({x0, y0, z0}, ux, uy, x1 - x0, y1 - y0, 4.5, wall, false, plain);  // back
+  builder.addPlane({x0, y0, z0}, uz, uy, z1 - z0, y1 - y0, 3.5, wall, false, plain);  // left
+  builder.addPlane({x1, y0, z0}, uz, uy, z1 - z0, y1 - y0, 4.0, wall, false, plain);  // right
+  // Doors: 0.9 x 2.0 m, 1 cm in front of a wall, darker or lighter than it, with a faint grain.
+  TextureStyle door = wall;
+  door.shape_density = 0.05;
+  const double door_w = 0.9, door_h = 2.0, gap = 0.01;
+  for (int d = 0; d < 4; ++d) {
+    door.mean_lo = door.mean_hi = rng.uniform() < 0.5 ? 50.0 : 70.0;
+    const double along = rng.uniform(0.3, 1.0 - 0.3);
+    switch (d) {
+      case 0: builder.addPlane({x0 + along * (x1 - x0 - door_w), y1 - door_h, z1 - gap}, ux, uy, door_w, door_h, 6.5, door, false, plain); break;
+      case 1: builder.addPlane({x0 + gap, y1 - door_h, z0 + along * (z1 - z0 - door_w)}, uz, uy, door_w, door_h, 3.5, door, false, plain); break;
+      case 2: builder.addPlane({x1 - gap, y1 - door_h, z0 + along * (z1 - z0 - door_w)}, uz, uy, door_w, door_h, 4.0, door, false, plain); break;
+      default: builder.addPlane({x0 + along * (x1 - x0 - door_w), y1 - door_h, z0 + gap}, ux, uy, door_w, door_h, 4.5, door, false, plain); break;
+    }
+  }
+  // A few plain boxes (cupboards, a table) give edges at other depths.
+  TextureStyle box = wall;
+  box.mean_lo = 50.0;
+  box.mean_hi = 70.0;
+  int placed = 0;
+  for (int attempt = 0; attempt < 200 && placed < 4; ++attempt) {
+    const double sx = rng.uniform(0.5, 1.5), sz = rng.uniform(0.5, 1.5), height = rng.uniform(0.7, 2.2);
+    const double cx = rng.uniform(x0 + 0.8, x1 - 0.8), cz = rng.uniform(z0 + 0.8, z1 - 0.8);
+    if (std::hypot(cx, cz) < 2.0 + 0.5 * std::hypot(sx, sz)) continue;
+    builder.addBox(cx, cz, y1, sx, sz, height, rng.uniform(-0.6, 0.6), std::hypot(cx, cz), box);
+    ++placed;
+  }
+  for (Plane& p : scene->planes) p.gain = plain;
+  // Every grey level within the 30-level band.
+  for (Texture& t : scene->textures)
+    for (cv::Mat& level : t.levels) level = cv::max(cv::min(level, kDimHigh), kDimLow);
+  scene->background = static_cast<float>(0.5 * (kDimLow + kDimHigh));
+}
+
 std::string sceneKey(const RenderSettings& s) {
   std::ostringstream key;
   key << s.preset << '/' << s.seed;
-  if (s.preset != "handheld" && s.preset != "drone_near") key << '/' << s.frames << '/' << s.rate_hz;
+  if (s.preset != "handheld" && s.preset != "dim" && s.preset != "drone_near") key << '/' << s.frames << '/' << s.rate_hz;
   return key.str();
 }
 
@@ -611,6 +674,8 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
     buildRoomScene(settings, scene.get());
   } else if (settings.preset == "drone_near") {
     buildNearScene(settings, scene.get());
+  } else if (settings.preset == "dim") {
+    buildDimRoomScene(settings, scene.get());
   } else {
     buildStreetScene(settings, scene.get());
   }
@@ -620,8 +685,9 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
 }
 
 void validate(const RenderSettings& s) {
-  if (s.preset != "drive" && s.preset != "handheld" && s.preset != "forward" && s.preset != "drone_near")
-    throw std::invalid_argument("renderer: unknown preset '" + s.preset + "' (drive, handheld, forward, drone_near)");
+  if (s.preset != "drive" && s.preset != "handheld" && s.preset != "forward" && s.preset != "dim" &&
+      s.preset != "drone_near")
+    throw std::invalid_argument("renderer: unknown preset '" + s.preset + "' (drive, handheld, forward, dim, drone_near)");
   if (s.width < 8 || s.height < 8 || s.width > 16384 || s.height > 16384)
     throw std::invalid_argument("renderer: image size " + std::to_string(s.width) + "x" + std::to_string(s.height) +
                                 " out of range [8, 16384]");
@@ -632,6 +698,53 @@ void validate(const RenderSettings& s) {
   if (!(std::isfinite(s.rate_hz) && s.rate_hz > 0)) throw std::invalid_argument("renderer: rate must be positive");
   if (!(std::isfinite(s.noise_sigma) && s.noise_sigma >= 0))
     throw std::invalid_argument("renderer: noise sigma must be finite and >= 0");
+  if (!(std::isfinite(s.contrast) && s.contrast > 0 && s.contrast <= 100))
+    throw std::invalid_argument("renderer: contrast must be in (0, 100]");
+  if (!(std::isfinite(s.blur_px) && s.blur_px >= 0 && s.blur_px <= 200))
+    throw std::invalid_argument("renderer: blur must be in [0, 200] px");
+  if (s.jpeg_quality < 0 || s.jpeg_quality > 100)
+    throw std::invalid_argument("renderer: JPEG quality must be in 1..100 (0 = no JPEG)");
+}
+
+/// Line kernel of `length` px along the unit direction `direction` (image x right, y down),
+/// centred, anti-aliased by splatting many points along the line bilinearly; sums to 1.
+cv::Mat motionBlurKernel(double length, const Eigen::Vector2d& direction) {
+  const int half = static_cast<int>(std::ceil(0.5 * length)) + 1;
+  cv::Mat kernel(2 * half + 1, 2 * half + 1, CV_32F, cv::Scalar(0));
+  const int steps = std::max(2, static_cast<int>(std::ceil(length * 16.0)));
+  for (int k = 0; k <= steps; ++k) {
+    const double s = length * (static_cast<double>(k) / steps - 0.5);
+    const double x = half + s * direction.x(), y = half + s * direction.y();
+    const int xi = fastFloor(x), yi = fastFloor(y);
+    const float fx = static_cast<float>(x - xi), fy = static_cast<float>(y - yi);
+    kernel.at<float>(yi, xi) += (1 - fx) * (1 - fy);
+    kernel.at<float>(yi, xi + 1) += fx * (1 - fy);
+    kernel.at<float>(yi + 1, xi) += (1 - fx) * fy;
+    kernel.at<float>(yi + 1, xi + 1) += fx * fy;
+  }
+  return kernel / cv::sum(kernel)[0];
+}
+
+/// Contrast and motion blur on the noiseless image (float grey levels).
+void degradeScene(const RenderSettings& s, const Eigen::Vector2d& blur_direction, cv::Mat* acc) {
+  if (s.contrast != 1.0) {
+    const double mean = cv::mean(*acc)[0];
+    acc->convertTo(*acc, CV_32F, s.contrast, (1.0 - s.contrast) * mean);
+  }
+  if (s.blur_px > 0.0) {
+    cv::filter2D(*acc, *acc, CV_32F, motionBlurKernel(s.blur_px, blur_direction), cv::Point(-1, -1), 0,
+                 cv::BORDER_REFLECT_101);
+  }
+}
+
+/// JPEG round trip of the final 8-bit image.
+void compressJpeg(int quality, cv::Mat* image) {
+  if (quality <= 0) return;
+  std::vector<uchar> bytes;
+  if (!cv::imencode(".jpg", *image, bytes, {cv::IMWRITE_JPEG_QUALITY, quality}))
+    throw std::runtime_error("renderer: JPEG encoding failed");
+  *image = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  if (image->empty()) throw std::runtime_error("renderer: JPEG decoding failed");
 }
 
 /// Per-frame constants of one plane: every dot product with the sample ray d(i, j) is linear in
@@ -663,7 +776,8 @@ std::vector<Eigen::Vector3d> clipNear(const std::vector<Eigen::Vector3d>& poly, 
 }
 
 cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Matrix3d& orientation,
-                    const Eigen::Vector3d& position, uint64_t noise_seed) {
+                    const Eigen::Vector3d& position, uint64_t noise_seed,
+                    const Eigen::Vector2d& blur_direction) {
   const int sw = s.width * kSamples, sh = s.height * kSamples;
   // Sample (i, j) sits at pixel (u, v) = ((i + 0.5) / 2 - 0.5, (j + 0.5) / 2 - 0.5); its ray in
   // the camera frame is d = ((u - cx) / fx, (v - cy) / fy, 1), so t along d is the depth.
@@ -763,6 +877,7 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
     }
   }
 
+  degradeScene(s, blur_direction, &acc);
   cv::Mat image(s.height, s.width, CV_8UC1);
   Rng noise(noise_seed);
   for (int y = 0; y < s.height; ++y) {
@@ -773,7 +888,23 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
       out[x] = static_cast<uint8_t>(std::clamp(v, 0.0, 255.0) + 0.5);
     }
   }
+  compressJpeg(s.jpeg_quality, &image);
   return image;
+}
+
+/// Direction of the image motion at the principal point over one frame interval centred on t
+/// (the rotation's: a far point on the optical axis), +x when the camera does not turn.
+Eigen::Vector2d imageMotionDirection(const Trajectory& trajectory, const RenderSettings& s, double t) {
+  const double h = 0.5 / s.rate_hz;
+  Eigen::Matrix3d before, after;
+  Eigen::Vector3d position;
+  trajectory.pose(t - h, &before, &position);
+  trajectory.pose(t + h, &after, &position);
+  // The optical axis at t - h, seen from the camera at t + h.
+  const Eigen::Vector3d ray = after.transpose() * before * Eigen::Vector3d::UnitZ();
+  if (!(ray.z() > 0.0)) return Eigen::Vector2d::UnitX();
+  const Eigen::Vector2d flow(s.fx * ray.x() / ray.z(), s.fy * ray.y() / ray.z());
+  return flow.norm() > 1e-6 ? Eigen::Vector2d(flow / flow.norm()) : Eigen::Vector2d::UnitX();
 }
 
 }  // namespace
@@ -790,7 +921,8 @@ RenderedSequence renderSequence(const RenderSettings& settings) {
     Eigen::Matrix3d orientation;
     Eigen::Vector3d position;
     trajectory.pose(t, &orientation, &position);
-    out.images.push_back(renderScene(*scene, settings, orientation, position, mixSeed(settings.seed, 1000 + k)));
+    out.images.push_back(renderScene(*scene, settings, orientation, position, mixSeed(settings.seed, 1000 + k),
+                                     imageMotionDirection(trajectory, settings, t)));
     out.orientations.push_back(orientation);
     out.positions.push_back(position);
     out.stamps.push_back(t);
@@ -804,7 +936,8 @@ cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orient
   if (!orientation.allFinite() || !position.allFinite())
     throw std::invalid_argument("renderView: non-finite pose");
   const auto scene = sceneFor(settings);
-  return renderScene(*scene, settings, orientation, position, mixSeed(settings.seed, 0x56494557ull));
+  return renderScene(*scene, settings, orientation, position, mixSeed(settings.seed, 0x56494557ull),
+                     Eigen::Vector2d::UnitX());
 }
 
 void writeKittiLayout(const RenderedSequence& sequence, const std::string& folder) {

@@ -1,5 +1,6 @@
 #include "visual_gyro/visual_gyro.h"
 
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -90,6 +91,7 @@ void VisualGyro::reset() {
   previous_features_ = FrameFeatures();
   previous_keypoint_bearings_.clear();
   prior_.reset();
+  prior_uncertainty_rad_ = 0.0;
 }
 
 void VisualGyro::setCamera(const CameraModel& camera) {
@@ -158,20 +160,21 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   result.skipped = false;
 
   StageTimes times;
-  FrameFeatures features;
+  FrameFeatures& features = features_;
   try {
     auto t0 = std::chrono::steady_clock::now();
-    const std::vector<cv::Point2f> corners = front_end_.detect(gray);
+    front_end_.detect(gray, &corners_);
     times.detect = elapsedMs(t0);
     t0 = std::chrono::steady_clock::now();
-    features = front_end_.describe(gray, corners);
+    front_end_.describe(gray, corners_, &features);
     times.describe = elapsedMs(t0);
   } catch (const std::exception& e) {
     result.error = std::string("front end failed: ") + e.what();
     return result;
   }
   result.features = static_cast<int>(features.keypoints.size());
-  std::vector<Eigen::Vector3d> bearings(features.keypoints.size());
+  std::vector<Eigen::Vector3d>& bearings = bearings_;
+  bearings.resize(features.keypoints.size());
   for (size_t i = 0; i < bearings.size(); ++i)
     bearings[i] = camera_.bearing(features.keypoints[i].x, features.keypoints[i].y);
 
@@ -180,24 +183,44 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   } else {
     const double dt = stamp - previous_stamp_;
     result.dt = dt;
+    const RotationPrior prior = prior_.priorFor(dt);
     auto t0 = std::chrono::steady_clock::now();
-    const std::vector<FeatureMatch> matches = front_end_.match(previous_features_, features);
-    times.match = elapsedMs(t0);
-    for (const FeatureMatch& m : matches) {
-      result.previous_pixels.push_back(previous_features_.keypoints[m.previous]);
-      result.current_pixels.push_back(features.keypoints[m.current]);
-      result.previous_bearings.push_back(previous_keypoint_bearings_[m.previous]);
-      result.current_bearings.push_back(bearings[m.current]);
+    try {
+      matchFrames(prior);
+    } catch (const std::exception& e) {
+      // Before any state changed: the frame is rejected, the previous one stays.
+      result.error = std::string("front end failed: ") + e.what();
+      return result;
     }
+    times.match = elapsedMs(t0);
+    collectMatches(&result);
     if (settings_.run_estimator) {
       result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
-                                             prior_.priorFor(dt));
+                                             prior);
+      if (!result.rotation.valid && matching_ == "guided") {
+        // Guided matches that give no estimate: the prior may have sent the search to the wrong
+        // place (plenty of chance matches there, few consistent). Global matching does not
+        // depend on it; its estimate replaces the guided one, and both estimates' times count.
+        const StageTimes guided_times = result.rotation.times;
+        t0 = std::chrono::steady_clock::now();
+        front_end_.match(previous_features_, features_, &matches_);
+        matching_ = "global_fallback";
+        times.match += elapsedMs(t0);
+        collectMatches(&result);
+        result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
+                                               prior);
+        result.rotation.times.estimate += guided_times.estimate;
+        result.rotation.times.vote += guided_times.vote;
+        result.rotation.times.vote_device += guided_times.vote_device;
+        result.rotation.times.refine += guided_times.refine;
+      }
       if (result.rotation.valid) {
         const std::string implausible = checkRatePlausible(result.rotation.rotation_vector, dt, settings_);
         if (!implausible.empty()) markInvalid(implausible, &result.rotation);
       }
       // An implausible rotation is no prior for the next frame either.
       prior_.update(result.rotation, dt);
+      updatePriorUncertainty(prior, result.rotation);
       result.has_estimate = result.rotation.valid;
       result.error = result.rotation.error;
       if (result.has_estimate) {
@@ -205,6 +228,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         result.angular_velocity_covariance = result.rotation.covariance / (dt * dt);
       }
     }
+    result.matching = matching_;
   }
   times.estimate = result.rotation.times.estimate;
   times.vote = result.rotation.times.vote;
@@ -216,9 +240,65 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   has_previous_ = true;
   previous_stamp_ = stamp;
   gray.copyTo(previous_gray_);
-  previous_features_ = std::move(features);
-  previous_keypoint_bearings_ = std::move(bearings);
+  // Swapped, not moved: the old previous frame's buffers serve the next frame.
+  std::swap(previous_features_, features_);
+  std::swap(previous_keypoint_bearings_, bearings_);
   return result;
+}
+
+void VisualGyro::collectMatches(FrameResult* result) const {
+  result->previous_pixels.clear();
+  result->current_pixels.clear();
+  result->previous_bearings.clear();
+  result->current_bearings.clear();
+  for (const FeatureMatch& m : matches_) {
+    result->previous_pixels.push_back(previous_features_.keypoints[m.previous]);
+    result->current_pixels.push_back(features_.keypoints[m.current]);
+    result->previous_bearings.push_back(previous_keypoint_bearings_[m.previous]);
+    result->current_bearings.push_back(bearings_[m.current]);
+  }
+}
+
+void VisualGyro::matchFrames(const RotationPrior& prior) {
+  const FrontEndSettings& s = settings_.front_end;
+  if (s.matching != "guided" || !prior.valid) {
+    front_end_.match(previous_features_, features_, &matches_);
+    matching_ = "global";
+    return;
+  }
+  const double angle = prior.rotation_vector.norm();
+  const Eigen::Matrix3d rotation =
+      angle > 0.0 ? Eigen::AngleAxisd(angle, prior.rotation_vector / angle).toRotationMatrix()
+                  : Eigen::Matrix3d::Identity();
+  front_end_.predict(camera_, rotation, prior_uncertainty_rad_, previous_keypoint_bearings_,
+                     &prediction_);
+  front_end_.matchGuided(previous_features_, features_, prediction_, &matches_);
+  matching_ = "guided";
+  // Too few: the prior is probably wrong (a jolt, a bad last estimate); global matching does not
+  // depend on it.
+  if (static_cast<int>(matches_.size()) < s.guided_min_matches) {
+    front_end_.match(previous_features_, features_, &matches_);
+    matching_ = "global_fallback";
+  }
+}
+
+void VisualGyro::updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate) {
+  if (!estimate.valid) {
+    // The next frame has no prior (global matching); the uncertainty is set again once it has.
+    prior_uncertainty_rad_ = 0.0;
+    return;
+  }
+  // How far the constant-rate prediction was off this time (from identity when there was no
+  // prior), plus three standard deviations of the estimate the next prior is made from.
+  const Eigen::Vector3d predicted = prior.valid ? prior.rotation_vector : Eigen::Vector3d::Zero();
+  const double angle = predicted.norm();
+  const Eigen::Matrix3d predicted_rotation =
+      angle > 0.0 ? Eigen::AngleAxisd(angle, predicted / angle).toRotationMatrix()
+                  : Eigen::Matrix3d::Identity();
+  const double error =
+      Eigen::AngleAxisd(predicted_rotation.transpose() * estimate.rotation).angle();
+  const double sigma = std::sqrt(std::max(0.0, estimate.covariance.diagonal().maxCoeff()));
+  prior_uncertainty_rad_ = std::isfinite(error + sigma) ? error + 3.0 * sigma : 0.0;
 }
 
 }  // namespace visual_gyro

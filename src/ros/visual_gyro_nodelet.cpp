@@ -247,6 +247,11 @@ VisualGyroSettings VisualGyroNodelet::settingsFromConfig(const Config& c) const 
   s.front_end.max_ratio = c.max_ratio;
   s.front_end.max_hamming = c.max_hamming;
   s.front_end.cross_check = c.cross_check;
+  s.front_end.min_fast_threshold = c.min_fast_threshold;
+  s.front_end.matching = c.matching;
+  s.front_end.guided_radius_px = c.guided_radius_px;
+  s.front_end.guided_radius_growth = c.guided_radius_growth;
+  s.front_end.guided_min_matches = c.guided_min_matches;
   EstimatorSettings& e = s.estimator;
   e.method = c.method;
   e.backend = backend_request_;

@@ -27,6 +27,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "baselines.h"
+#include "comparison_front_ends.h"
 #include "visual_gyro/sequence.h"
 #include "standalone/bearing_file.h"
 #include "visual_gyro/visual_gyro.h"
@@ -60,6 +61,8 @@ const char* const kUsage =
     "  --outliers F           replace the fraction F of the matches by random wrong pairings\n"
     "  --max-matches N        use at most N matches per pair (a deterministic random subset)\n"
     "  --export-bearings FILE write the matched bearings of every pair (text)\n"
+    "  --front-end F          native (default), orb (OpenCV ORB, 1500 features, BFMatcher with\n"
+    "                         cross-check) or klt (goodFeaturesToTrack + calcOpticalFlowPyrLK)\n"
     "  --set key=value        front-end or estimator setting (repeatable), e.g. --set yaw_bin_deg=0.2\n"
     "  --timing-sweep FILE    time the estimators (CSV), no evaluation: series 'hypotheses'\n"
     "                         (vote/paper over L_h at M matches; other methods once at M) and\n"
@@ -204,6 +207,7 @@ struct Options {
   double outliers = 0.0;
   int max_matches = 0;
   std::string export_bearings;
+  std::string front_end = "native";
   std::vector<std::string> sets;
   std::string timing_sweep;
   std::vector<int> sweep_hypotheses{100, 300, 1000, 3000, 10000, 30000, 100000};
@@ -290,6 +294,13 @@ Options parseOptions(int argc, char** argv) {
       o.export_bearings = value();
     } else if (a == "--set") {
       o.sets.push_back(value());
+    } else if (a == "--front-end") {
+      o.front_end = value();
+      const auto& others = comparisonFrontEndNames();
+      if (o.front_end != "native" &&
+          std::find(others.begin(), others.end(), o.front_end) == others.end()) {
+        throw UsageError("--front-end must be native, orb or klt, not '" + o.front_end + "'");
+      }
     } else if (a == "--timing-sweep") {
       o.timing_sweep = value();
     } else if (a == "--sweep-hypotheses") {
@@ -356,6 +367,11 @@ void applySetting(const std::string& assignment, VisualGyroSettings* s) {
   auto toDouble = [&]() { return parseDouble(v, what); };
   // Front end.
   if (key == "fast_threshold") f.fast_threshold = toInt();
+  else if (key == "min_fast_threshold") f.min_fast_threshold = toInt();
+  else if (key == "matching") f.matching = v;
+  else if (key == "guided_radius_px") f.guided_radius_px = toDouble();
+  else if (key == "guided_radius_growth") f.guided_radius_growth = toDouble();
+  else if (key == "guided_min_matches") f.guided_min_matches = toInt();
   else if (key == "max_features") f.max_features = toInt();
   else if (key == "grid_cols") f.grid_cols = toInt();
   else if (key == "grid_rows") f.grid_rows = toInt();
@@ -401,6 +417,7 @@ struct FramePair {
   std::vector<Eigen::Vector3d> previous, current;  ///< matched bearings (after --max-matches/--outliers)
   int matches_found = 0;      ///< matches the front end found (before --max-matches)
   StageTimes front_end;       ///< detect, describe, match of the current frame [ms]
+  std::string matching;       ///< native front end: guided, global or global_fallback
   bool has_truth = false;
   /// The truth is from poses, not from a (biased) gyro: only then is it fit to judge a covariance.
   bool truth_from_poses = false;
@@ -488,14 +505,20 @@ void injectOutliers(double fraction, uint64_t seed, double angle_per_px, FramePa
   }
 }
 
-/// Runs the front end over the sequence: one FramePair per (k - stride, k).
+/// Runs the front end over the sequence: one FramePair per (k - stride, k). The native front end
+/// runs the pipeline; with guided matching its own vote estimator runs too (on the CPU, not timed
+/// into any method), because the rotation prior that guides the matching comes from it, as in the
+/// node. orb and klt give pixels, turned into bearings through the sequence's camera model.
 std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings& settings,
                                    const Options& o) {
-  // Front end only: its own estimator never runs, so it stays on the CPU (no device set-up, no
-  // duplicate backend warning); the methods' estimators pick the requested backend.
   VisualGyroSettings front_end_only = settings;
   front_end_only.estimator.backend = "cpu";
+  front_end_only.estimator.method = "vote";
+  front_end_only.run_estimator = settings.front_end.matching == "guided";
   VisualGyro gyro(seq.camera, front_end_only, [](const std::string& w) { std::cerr << "warning: " << w << "\n"; });
+  std::unique_ptr<ComparisonFrontEnd> other;
+  if (o.front_end != "native") other = makeComparisonFrontEnd(o.front_end);
+  std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<FramePair> pairs;
   const double angle_per_px = 1.0 / seq.camera.fx();
   bool have_previous = false;
@@ -508,11 +531,29 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
     if (o.frames > 0 && static_cast<long long>(pairs.size()) >= o.frames) break;
     const cv::Mat gray = cv::imread(seq.image_paths[k], cv::IMREAD_GRAYSCALE);
     if (gray.empty()) throw DataError("cannot read image " + seq.image_paths[k]);
-    FrameResult r = gyro.processFrame(gray, seq.stamps[k]);
-    if (have_previous && r.skipped && r.dt > 0.0) {
-      // A time step below min_dt: the pipeline skipped the frame, the next pairs with the previous.
-      if (skipped_min_dt++ == 0) first_skip = "image " + seq.image_paths[k] + ": " + r.error;
-      continue;
+    FrameResult r;
+    if (other) {
+      if (gray.cols != seq.camera.width() || gray.rows != seq.camera.height()) {
+        throw DataError("image " + seq.image_paths[k] + " is " + std::to_string(gray.cols) + "x" +
+                        std::to_string(gray.rows) + " but the camera model is " +
+                        std::to_string(seq.camera.width()) + "x" + std::to_string(seq.camera.height()));
+      }
+      const bool paired = other->process(gray, &previous_pixels, &current_pixels, &r.rotation.times);
+      if (paired) {
+        r.dt = seq.stamps[k] - seq.stamps[previous_index];
+        r.matching = o.front_end;
+        for (size_t i = 0; i < previous_pixels.size(); ++i) {
+          r.previous_bearings.push_back(seq.camera.bearing(previous_pixels[i].x, previous_pixels[i].y));
+          r.current_bearings.push_back(seq.camera.bearing(current_pixels[i].x, current_pixels[i].y));
+        }
+      }
+    } else {
+      r = gyro.processFrame(gray, seq.stamps[k]);
+      if (have_previous && r.skipped && r.dt > 0.0) {
+        // A time step below min_dt: the pipeline skipped the frame, the next pairs with the previous.
+        if (skipped_min_dt++ == 0) first_skip = "image " + seq.image_paths[k] + ": " + r.error;
+        continue;
+      }
     }
     if (!have_previous) {
       have_previous = true;
@@ -522,8 +563,9 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
       }
       continue;
     }
-    if (r.previous_bearings.empty() && !r.error.empty() && !r.frozen) {
-      // Image-level problems (size mismatch, bad stamp) are data errors, not estimator failures.
+    // Image-level problems (size mismatch, bad stamp) are data errors; a frozen frame and the
+    // front-end pipeline's own estimate (guided matching) failing are not.
+    if (r.previous_bearings.empty() && !r.error.empty() && !r.frozen && r.error != r.rotation.error) {
       throw DataError("image " + seq.image_paths[k] + ": " + r.error);
     }
     FramePair p;
@@ -535,6 +577,7 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
     p.matches_found = static_cast<int>(p.previous.size());
     p.front_end = r.rotation.times;
     p.frozen = r.frozen;
+    p.matching = r.matching;
     fillTruth(seq, &p);
     const uint64_t seed = o.has_seed ? o.seed : settings.estimator.seed;
     subsample(o.max_matches, seed, &p);
@@ -772,6 +815,10 @@ struct MethodSummary {
   double nees_mean = kNaN;      ///< mean NEES over the valid frames with truth (3 when honest)
   double nees_beyond99 = kNaN;  ///< fraction of those frames beyond the 99 % chi-square bound
   std::string first_error;
+  std::string front_end;       ///< native, orb or klt
+  std::string matching;        ///< native: the matching setting (guided, global); else ""
+  int guided_pairs = 0;        ///< native: pairs matched guided by the prior
+  int fallback_pairs = 0;      ///< native: pairs where guided found too few and global ran
 };
 
 /// 99 % quantile of the chi-square distribution with 3 degrees of freedom.
@@ -857,6 +904,8 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner,
     s.vote_device += e.vote_device_ms;
     s.refine += e.refine_ms;
     s.matches_mean += row.matches;
+    if (p.matching == "guided") ++s.guided_pairs;
+    if (p.matching == "global_fallback") ++s.fallback_pairs;
     s.rows.push_back(row);
   }
   s.frames = static_cast<int>(pairs.size());
@@ -923,7 +972,14 @@ void printSummary(const Sequence& seq, const Options& o, const MethodSummary& s)
   if (std::isfinite(s.nees_mean))
     std::cout << "   covariance      NEES mean " << fmt(s.nees_mean, 2) << " (3 when honest), beyond 99 % bound "
               << fmt(100.0 * s.nees_beyond99, 1) << " % of valid frames\n";
-  std::cout << "   matches         mean " << fmt(s.matches_mean, 1) << "\n";
+  std::cout << "   matches         mean " << fmt(s.matches_mean, 1) << " (front end " << s.front_end;
+  if (!s.matching.empty()) {
+    std::cout << ", matching " << s.matching;
+    if (s.matching == "guided") {
+      std::cout << ": " << s.guided_pairs << " pairs guided, " << s.fallback_pairs << " fell back to global";
+    }
+  }
+  std::cout << ")\n";
   std::cout << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
             << fmt(s.match) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
   if (std::isfinite(s.vote)) {
@@ -954,6 +1010,10 @@ std::string jsonLine(const Sequence& seq, const Options& o, const EstimatorSetti
       .add("ms_per_frame", times)
       .add("backend", s.backend)
       .add("matches_mean", s.matches_mean)
+      .add("front_end", s.front_end)
+      .add("matching", s.matching)
+      .add("guided_pairs", s.guided_pairs)
+      .add("fallback_pairs", s.fallback_pairs)
       .add("layout", seq.layout)
       .add("hypotheses", isOwnMethod(s.method) ? est.hypotheses : 0)
       .add("outliers", o.outliers)
@@ -1104,6 +1164,9 @@ void timingSweep(const Sequence& seq, const Options& o, const EstimatorSettings&
 
 int run(int argc, char** argv) {
   const Options o = parseOptions(argc, argv);
+  // One thread: the figures compare front ends and estimators per thread. OpenCV would otherwise
+  // spread some of its functions (ORB, brute-force matching, optical flow) over every core.
+  cv::setNumThreads(1);
 
   VisualGyroSettings settings;
   for (const auto& assignment : o.sets) applySetting(assignment, &settings);
@@ -1154,6 +1217,8 @@ int run(int argc, char** argv) {
     std::unique_ptr<MethodRunner> runner =
         std::make_unique<PlausibilityRunner>(makeRunner(method, settings.estimator, base), settings);
     summaries.push_back(evaluateMethod(method, runner.get(), pairs));
+    summaries.back().front_end = o.front_end;
+    if (o.front_end == "native") summaries.back().matching = settings.front_end.matching;
   }
   if (!o.csv.empty()) writeCsv(o.csv, summaries);
   std::cerr.flush();

@@ -14,17 +14,21 @@
 namespace {
 
 const char* const kUsage =
-    "usage: render_sequence --preset drive|handheld|forward|drone_near --out DIR [options]\n"
+    "usage: render_sequence --preset drive|handheld|forward|dim|drone_near --out DIR [options]\n"
     "  --out DIR       output folder (KITTI layout; --output is accepted too)\n"
     "  --frames N      number of frames (default 60)\n"
     "  --width W       image width [px] (default 640)\n"
     "  --height H      image height [px] (default 480)\n"
     "  --focal F       focal length fx = fy [px] (default 500); the principal point is the centre\n"
-    "  --rate HZ       frame rate (default 10 for drive/forward, 30 for handheld, 20 for drone_near)\n"
+    "  --rate HZ       frame rate (default 10 for drive/forward, 30 for handheld/dim, 20 for drone_near)\n"
     "  --noise SIGMA   Gaussian pixel noise [grey levels] (default 2)\n"
     "  --seed S        texture and noise seed (default 7)\n"
+    "  --contrast F    scale grey levels about the image mean by F (default 1)\n"
+    "  --blur PX       motion blur of PX pixels along the image motion (default 0)\n"
+    "  --jpeg Q        JPEG-compress every image at quality Q, 1..100 (default: none)\n"
     "Presets: drive = car at 10 m/s with a right and a left turn (up to 30 deg/s); handheld =\n"
-    "rotation about all axes (up to ~40 deg/s) in a room, mm jitter; forward = straight drive.\n"
+    "rotation about all axes (up to ~40 deg/s) in a room, mm jitter; forward = straight drive;\n"
+    "dim = the handheld motion in a dim room of plain walls, doors and boxes (30 grey levels).\n"
     "Poses are camera -> first camera (x right, y down, z forward), positions in metres.\n";
 
 bool parseInt(const std::string& text, long lo, long hi, long* value) {
@@ -89,6 +93,15 @@ int main(int argc, char** argv) {
     } else if (arg == "--noise") {
       if (!parseDouble(value, &x) || x < 0) return usageError("bad --noise '" + value + "'");
       settings.noise_sigma = x;
+    } else if (arg == "--contrast") {
+      if (!parseDouble(value, &x) || x <= 0 || x > 100) return usageError("bad --contrast '" + value + "'");
+      settings.contrast = x;
+    } else if (arg == "--blur") {
+      if (!parseDouble(value, &x) || x < 0 || x > 200) return usageError("bad --blur '" + value + "'");
+      settings.blur_px = x;
+    } else if (arg == "--jpeg") {
+      if (!parseInt(value, 1, 100, &n)) return usageError("bad --jpeg '" + value + "' (1..100)");
+      settings.jpeg_quality = static_cast<int>(n);
     } else if (arg == "--seed") {
       char* end = nullptr;
       errno = 0;
@@ -101,11 +114,13 @@ int main(int argc, char** argv) {
   }
   if (!preset_given) return usageError("--preset is required");
   if (settings.preset != "drive" && settings.preset != "handheld" && settings.preset != "forward" &&
-      settings.preset != "drone_near")
+      settings.preset != "dim" && settings.preset != "drone_near")
     return usageError("unknown preset '" + settings.preset + "'");
   if (out.empty()) return usageError("--out is required");
   if (!rate_given)
-    settings.rate_hz = settings.preset == "handheld" ? 30.0 : settings.preset == "drone_near" ? 20.0 : 10.0;
+    settings.rate_hz = settings.preset == "handheld" || settings.preset == "dim" ? 30.0
+                       : settings.preset == "drone_near"                          ? 20.0
+                                                                                  : 10.0;
   settings.setCentredCamera(settings.width, settings.height, settings.fx);
 
   visual_gyro::RenderedSequence sequence;

@@ -1,0 +1,320 @@
+// Front end for hard footage: guided matching against global matching on a rendered pair with a
+// known rotation, the fallback to global matching after a wrong prior, adaptive FAST thresholds on
+// low-contrast texture, the renderer's degradations and the settings' single source of truth.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
+
+#include "visual_gyro/feature_front_end.h"
+#include "visual_gyro/renderer.h"
+#include "visual_gyro/visual_gyro.h"
+
+namespace vg = visual_gyro;
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+vg::RenderSettings roomScene() {
+  vg::RenderSettings s;
+  s.preset = "handheld";
+  s.setCentredCamera(480, 360, 380.0);
+  return s;
+}
+
+vg::CameraModel cameraOf(const vg::RenderSettings& s) {
+  return vg::CameraModel(s.fx, s.fy, s.cx, s.cy, s.width, s.height);
+}
+
+Eigen::Matrix3d yawPitch(double yaw_deg, double pitch_deg) {
+  return (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(pitch_deg * kDeg, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+/// True when match m agrees with the rotation `truth` (b_prev ~ R b_cur) to within 1.5 px.
+bool correct(const vg::CameraModel& camera, const Eigen::Matrix3d& truth, const vg::FrameFeatures& previous,
+             const vg::FrameFeatures& current, const vg::FeatureMatch& m) {
+  const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
+  const Eigen::Vector2d predicted = camera.project(truth.transpose() * camera.bearing(p.x, p.y));
+  return std::hypot(predicted.x() - q.x, predicted.y() - q.y) <= 1.5;
+}
+
+}  // namespace
+
+// Guided matching with the true rotation finds every correct match that global matching finds:
+// a correct global match is the mutual best over all descriptors, so it is also the mutual best in
+// the windows, and the second best in a window is no closer than the global one (ratio test).
+TEST(GuidedMatching, FindsTheCorrectMatchesOfGlobalMatching) {
+  const vg::RenderSettings scene = roomScene();
+  const vg::CameraModel camera = cameraOf(scene);
+  const Eigen::Matrix3d R0 = yawPitch(0.0, 0.0), R1 = yawPitch(2.5, -1.0);
+  const Eigen::Matrix3d truth = R0.transpose() * R1;
+  const cv::Mat image0 = vg::renderView(scene, R0, Eigen::Vector3d::Zero());
+  const cv::Mat image1 = vg::renderView(scene, R1, Eigen::Vector3d::Zero());
+
+  const vg::FeatureFrontEnd front_end;
+  const vg::FrameFeatures previous = front_end.describe(image0, front_end.detect(image0));
+  const vg::FrameFeatures current = front_end.describe(image1, front_end.detect(image1));
+  std::vector<vg::FeatureMatch> global, guided;
+  front_end.match(previous, current, &global);
+
+  std::vector<Eigen::Vector3d> bearings;
+  for (const cv::Point2f& p : previous.keypoints) bearings.push_back(camera.bearing(p.x, p.y));
+  vg::MatchPrediction prediction;
+  front_end.predict(camera, truth, 0.0, bearings, &prediction);
+  front_end.matchGuided(previous, current, prediction, &guided);
+
+  std::set<std::pair<int, int>> guided_pairs;
+  size_t guided_correct = 0;
+  for (const vg::FeatureMatch& m : guided) {
+    guided_pairs.insert({m.previous, m.current});
+    EXPECT_EQ(m.distance, vg::hammingDistance(previous.descriptors[m.previous], current.descriptors[m.current]));
+    if (correct(camera, truth, previous, current, m)) ++guided_correct;
+  }
+  size_t global_correct = 0, found = 0;
+  for (const vg::FeatureMatch& m : global) {
+    if (!correct(camera, truth, previous, current, m)) continue;
+    ++global_correct;
+    if (guided_pairs.count({m.previous, m.current})) ++found;
+    else ADD_FAILURE() << "correct global match " << m.previous << " -> " << m.current << " not found guided";
+  }
+  std::printf("global: %zu matches, %zu correct; guided: %zu matches, %zu correct, %zu of global's correct\n",
+              global.size(), global_correct, guided.size(), guided_correct, found);
+  EXPECT_GE(global_correct, 300u);
+  EXPECT_EQ(found, global_correct);
+  EXPECT_GE(guided_correct, global_correct);
+}
+
+TEST(GuidedMatching, PredictionFollowsTheCameraModelAndDropsPointsLeavingTheView) {
+  // Distorted camera: the prediction goes through the distortion model.
+  const vg::CameraModel camera(400.0, 400.0, 319.5, 239.5, 640, 480, vg::DistortionModel::kPlumbBob,
+                               {-0.28, 0.07, 0.0002, 0.00002});
+  vg::FrontEndSettings settings;
+  settings.guided_radius_px = 10.0;
+  settings.guided_radius_growth = 0.0;
+  const vg::FeatureFrontEnd front_end(settings);
+  const Eigen::Matrix3d R = yawPitch(3.0, 1.0);
+  const std::vector<Eigen::Vector3d> bearings{camera.bearing(100.0, 80.0), camera.bearing(600.0, 400.0),
+                                              camera.bearing(320.0, 240.0)};
+  vg::MatchPrediction prediction;
+  front_end.predict(camera, R, 0.01, bearings, &prediction);
+  ASSERT_EQ(prediction.positions.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    const Eigen::Vector2d expected = camera.project(R.transpose() * bearings[i]);
+    EXPECT_NEAR(prediction.positions[i].x, expected.x(), 1e-3);
+    EXPECT_NEAR(prediction.positions[i].y, expected.y(), 1e-3);
+    // Radius: 10 px plus the uncertainty (0.01 rad at 400 px focal length).
+    EXPECT_NEAR(prediction.radii[i], 14.0, 1e-4);
+  }
+  // A 90 degree turn takes the centre out of the view: no search for it.
+  front_end.predict(camera, yawPitch(90.0, 0.0), 0.0, bearings, &prediction);
+  EXPECT_LT(prediction.radii[2], 0.0f);
+
+  EXPECT_THROW(front_end.predict(camera, Eigen::Matrix3d::Constant(NAN), 0.0, bearings, &prediction),
+               std::invalid_argument);
+  EXPECT_THROW(front_end.predict(camera, R, -1.0, bearings, &prediction), std::invalid_argument);
+  vg::FrameFeatures features;
+  features.keypoints.resize(3);
+  features.descriptors.resize(3);
+  vg::MatchPrediction short_prediction;
+  std::vector<vg::FeatureMatch> matches;
+  EXPECT_THROW(front_end.matchGuided(features, features, short_prediction, &matches), std::invalid_argument);
+}
+
+// The pipeline matches guided once it has a prior, falls back to global matching when the prior is
+// wrong (the camera turns back sharply), and still estimates the true rotation.
+TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
+  const vg::RenderSettings scene = roomScene();
+  vg::VisualGyroSettings settings;
+  settings.estimator.backend = "cpu";
+  vg::VisualGyro gyro(cameraOf(scene), settings);
+  const double yaws[] = {0.0, 2.0, 4.0, 6.0, -4.0};  // +2 deg a frame, then -10 deg
+  std::vector<vg::FrameResult> results;
+  for (int k = 0; k < 5; ++k) {
+    results.push_back(gyro.processFrame(vg::renderView(scene, yawPitch(yaws[k], 0.0), Eigen::Vector3d::Zero()),
+                                        1.0 + 0.05 * k));
+  }
+  EXPECT_EQ(results[0].matching, "");
+  EXPECT_EQ(results[1].matching, "global");  // no prior yet
+  EXPECT_EQ(results[2].matching, "guided");
+  EXPECT_EQ(results[3].matching, "guided");
+  EXPECT_EQ(results[4].matching, "global_fallback");  // the prior says +2 deg, the camera turned -10
+  for (int k = 1; k < 5; ++k) {
+    ASSERT_TRUE(results[k].has_estimate) << "frame " << k << ": " << results[k].error;
+    const Eigen::Matrix3d truth = yawPitch(yaws[k - 1], 0.0).transpose() * yawPitch(yaws[k], 0.0);
+    EXPECT_LT(vg::rotationAngleBetween(results[k].rotation.rotation, truth), 0.05 * kDeg) << "frame " << k;
+    EXPECT_GE(results[k].previous_bearings.size(), 200u) << "frame " << k;
+  }
+  // After a reset there is no prior: global again. matching = global never guides.
+  gyro.reset();
+  gyro.processFrame(vg::renderView(scene, yawPitch(0.0, 0.0), Eigen::Vector3d::Zero()), 2.0);
+  EXPECT_EQ(gyro.processFrame(vg::renderView(scene, yawPitch(2.0, 0.0), Eigen::Vector3d::Zero()), 2.05).matching,
+            "global");
+  settings.front_end.matching = "global";
+  gyro.setSettings(settings);
+  EXPECT_EQ(gyro.processFrame(vg::renderView(scene, yawPitch(4.0, 0.0), Eigen::Vector3d::Zero()), 2.1).matching,
+            "global");
+}
+
+// Adaptive detection: a low-contrast half of the image, without a corner at the normal FAST
+// threshold, gets corners from the lower per-cell threshold once the strong corners cannot fill
+// the budget; while they can, the selection is that of the fixed threshold.
+TEST(AdaptiveDetection, LowContrastCellsGetCornersAtTheFloorThreshold) {
+  vg::RenderSettings scene = roomScene();
+  scene.setCentredCamera(640, 480, 500.0);
+  cv::Mat image = vg::renderView(scene, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  cv::Mat right = image(cv::Rect(320, 0, 320, 480));
+  right.convertTo(right, CV_8U, 0.2, 100);  // a fifth of the contrast
+
+  auto rightCount = [](const std::vector<cv::Point2f>& corners) {
+    return static_cast<long>(
+        std::count_if(corners.begin(), corners.end(), [](const cv::Point2f& p) { return p.x >= 320; }));
+  };
+  vg::FrontEndSettings fixed;
+  fixed.max_features = 4000;  // more than the strong corners: the budget is not filled
+  fixed.min_fast_threshold = fixed.fast_threshold;  // off
+  vg::FrontEndSettings adaptive = fixed;
+  adaptive.min_fast_threshold = vg::FrontEndSettings().min_fast_threshold;
+  const std::vector<cv::Point2f> before = vg::FeatureFrontEnd(fixed).detect(image);
+  const std::vector<cv::Point2f> after = vg::FeatureFrontEnd(adaptive).detect(image);
+  std::printf("corners in the low-contrast half: fixed threshold %ld, adaptive %ld (of %zu / %zu)\n",
+              rightCount(before), rightCount(after), before.size(), after.size());
+  ASSERT_LT(before.size(), 4000u) << "the strong corners fill the budget; the test needs them not to";
+  EXPECT_LT(rightCount(before), 50);
+  // The 24 cells of that half (share 4000 / 48 = 83 each) get a good part of their shares.
+  EXPECT_GE(rightCount(after), 24 * 40);
+  EXPECT_LE(after.size(), 4000u);
+  // Every strong corner is still selected (the budget is not full).
+  std::set<std::pair<float, float>> selected;
+  for (const cv::Point2f& p : after) selected.insert({p.x, p.y});
+  for (const cv::Point2f& p : before) EXPECT_TRUE(selected.count({p.x, p.y})) << p;
+
+  // With the default budget the strong corners fill it: exactly the fixed threshold's corners.
+  vg::FrontEndSettings fixed_default, adaptive_default;
+  fixed_default.min_fast_threshold = fixed_default.fast_threshold;
+  const std::vector<cv::Point2f> full_fixed = vg::FeatureFrontEnd(fixed_default).detect(image);
+  ASSERT_EQ(full_fixed.size(), static_cast<size_t>(fixed_default.max_features));
+  EXPECT_EQ(vg::FeatureFrontEnd(adaptive_default).detect(image), full_fixed);
+}
+
+TEST(RendererDegradations, ContrastBlurAndJpegChangeTheImageAsDocumented) {
+  vg::RenderSettings s = roomScene();
+  s.noise_sigma = 0.0;
+  const cv::Mat clean = vg::renderView(s, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(clean, mean, stddev);
+
+  s.contrast = 0.25;
+  const cv::Mat low = vg::renderView(s, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  cv::Scalar low_mean, low_stddev;
+  cv::meanStdDev(low, low_mean, low_stddev);
+  EXPECT_NEAR(low_mean[0], mean[0], 1.0);
+  EXPECT_NEAR(low_stddev[0], 0.25 * stddev[0], 0.05 * stddev[0] + 0.5);
+
+  // renderView blurs along +x: horizontal gradients drop, vertical ones much less.
+  s.contrast = 1.0;
+  s.blur_px = 6.0;
+  const cv::Mat blurred = vg::renderView(s, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  auto gradient = [](const cv::Mat& image, int dx, int dy) {
+    cv::Mat g;
+    cv::Sobel(image, g, CV_32F, dx, dy);
+    return cv::mean(cv::abs(g))[0];
+  };
+  const double along = gradient(blurred, 1, 0) / gradient(clean, 1, 0);
+  const double across = gradient(blurred, 0, 1) / gradient(clean, 0, 1);
+  std::printf("6 px blur along x: x gradients x%.2f, y gradients x%.2f\n", along, across);
+  EXPECT_LT(along, 0.75);
+  EXPECT_GT(across, 0.8);
+  EXPECT_LT(along, across - 0.15);
+
+  s.blur_px = 0.0;
+  s.jpeg_quality = 20;
+  const cv::Mat jpeg = vg::renderView(s, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  ASSERT_EQ(jpeg.type(), CV_8UC1);
+  ASSERT_EQ(jpeg.size(), clean.size());
+  const double change = cv::norm(jpeg, clean, cv::NORM_L1) / clean.total();
+  EXPECT_GT(change, 0.5);
+  EXPECT_LT(change, 10.0);
+
+  const std::vector<std::function<void(vg::RenderSettings*)>> bad_settings{
+      [](vg::RenderSettings* r) { r->contrast = 0.0; }, [](vg::RenderSettings* r) { r->blur_px = -1.0; },
+      [](vg::RenderSettings* r) { r->jpeg_quality = 101; }};
+  for (const auto& bad : bad_settings) {
+    vg::RenderSettings b = roomScene();
+    bad(&b);
+    EXPECT_THROW(vg::renderView(b, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero()), std::invalid_argument);
+  }
+}
+
+TEST(RendererDegradations, DimPresetStaysWithinThirtyGreyLevels) {
+  vg::RenderSettings s;
+  s.preset = "dim";
+  s.frames = 3;
+  s.rate_hz = 30.0;
+  s.noise_sigma = 0.0;
+  const vg::RenderedSequence seq = vg::renderSequence(s);
+  ASSERT_EQ(seq.images.size(), 3u);
+  for (const cv::Mat& image : seq.images) {
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(image, &lo, &hi);
+    EXPECT_LE(hi - lo, 30.0);
+    EXPECT_GE(hi - lo, 10.0);  // not blank either
+  }
+  // The dim room moves like the hand-held one.
+  vg::RenderSettings h = s;
+  h.preset = "handheld";
+  const vg::RenderedSequence hand = vg::renderSequence(h);
+  for (size_t k = 0; k < 3; ++k) EXPECT_TRUE(seq.orientations[k].isApprox(hand.orientations[k]));
+}
+
+// One source of truth: the front-end defaults of the C++ settings are those of the
+// dynamic_reconfigure file, the node's YAML and the README's parameter table.
+TEST(FrontEndSettings, DefaultsAgreeWithCfgYamlAndReadme) {
+  const vg::FrontEndSettings d;
+  const std::map<std::string, std::string> defaults{
+      {"fast_threshold", std::to_string(d.fast_threshold)},
+      {"min_fast_threshold", std::to_string(d.min_fast_threshold)},
+      {"max_features", std::to_string(d.max_features)},
+      {"max_hamming", std::to_string(d.max_hamming)},
+      {"matching", d.matching},
+      {"guided_min_matches", std::to_string(d.guided_min_matches)}};
+  const std::map<std::string, double> real_defaults{{"smoothing_sigma", d.smoothing_sigma},
+                                                    {"max_ratio", d.max_ratio},
+                                                    {"guided_radius_px", d.guided_radius_px},
+                                                    {"guided_radius_growth", d.guided_radius_growth}};
+  auto read = [](const std::string& relative) {
+    std::ifstream in(std::string(VISUAL_GYRO_SOURCE_DIR) + "/" + relative);
+    std::stringstream text;
+    text << in.rdbuf();
+    EXPECT_FALSE(text.str().empty()) << relative;
+    return text.str();
+  };
+  const std::string cfg = read("cfg/VisualGyro.cfg"), yaml = read("config/visual_gyro.yaml"),
+                    readme = read("README.md");
+  auto check = [&](const std::string& key, const std::function<bool(const std::string&)>& same) {
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(cfg, m, std::regex("gen\\.add\\(\"" + key + "\", \\w+, 0, \"[^\"]*\", \"?([^,\"]+)\"?")))
+        << key << " missing in cfg/VisualGyro.cfg";
+    EXPECT_TRUE(same(m[1])) << key << ": cfg default " << m[1];
+    ASSERT_TRUE(std::regex_search(yaml, m, std::regex("\n" + key + ": *([^ #\n]+)"))) << key << " missing in the yaml";
+    EXPECT_TRUE(same(m[1])) << key << ": yaml default " << m[1];
+    ASSERT_TRUE(std::regex_search(readme, m, std::regex("\\| `" + key + "` \\| `?([^ |`]+)`? \\|")))
+        << key << " missing in the README parameter table";
+    EXPECT_TRUE(same(m[1])) << key << ": README default " << m[1];
+  };
+  for (const auto& [key, value] : defaults) check(key, [&](const std::string& v) { return v == value; });
+  for (const auto& [key, value] : real_defaults)
+    check(key, [&](const std::string& v) { return std::abs(std::stod(v) - value) < 1e-12; });
+}
