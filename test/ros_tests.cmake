@@ -16,6 +16,11 @@ add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_r
 catkin_add_gtest(test_ros_conversions test/ros/test_ros_conversions.cpp)
 target_link_libraries(test_ros_conversions visual_gyro_ros_tools ${catkin_LIBRARIES} gtest_main)
 
+# The node's diagnostics summary without a master (which cause wins, at which level).
+catkin_add_gtest(test_node_diagnostics test/ros/test_node_diagnostics.cpp src/ros/node_diagnostics.cpp)
+target_include_directories(test_node_diagnostics PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
+target_link_libraries(test_node_diagnostics ${catkin_LIBRARIES} gtest_main)
+
 # Bad ROS input: plausibility, frozen frames, mono16, calibration, diagnostics and throttled logs.
 add_rostest_gtest(test_reliability_ros test/ros/reliability.test test/ros/test_reliability_ros.cpp)
 target_link_libraries(test_reliability_ros visual_gyro_ros_tools ${catkin_LIBRARIES})
