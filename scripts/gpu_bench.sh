@@ -88,7 +88,7 @@ else
   log "no bearing files in .device_carry/bearings/: real-data check SKIPPED (see cuda/README.md to export them)"
 fi
 # 1b. The whole estimator (vote, paper) on both backends over the same files: the figures against
-#     the files' truth within 5 % (issue 5's accuracy goal), and the time split of an estimate.
+#     the files' truth within 5 % (the CUDA backend's accuracy goal), and the time split of an estimate.
 if (( ${#files[@]} )) && [[ -x ${estimator_check} ]]; then
   run check_estimator "${estimator_check}" "${require_gpu[@]}" "${frames_opt[@]}" \
     --csv "${out_dir}/check_estimator.csv" "${files[@]}"

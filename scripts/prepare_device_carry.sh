@@ -4,7 +4,7 @@
 #   bearings/<sequence>.txt  matched bearings (+ dt, true rotation) of the shared sequences present,
 #                            exported by `evaluate --export-bearings` (needs `make build` first);
 #   eigen3/Eigen/            Eigen's headers, for cuda_estimator_check (the GPU machine has no Eigen).
-# About 17 MB in all (the device tool carries at most 64 MiB).
+# About 17 MB in all (small enough to copy to a GPU machine with the working tree).
 #
 #   scripts/prepare_device_carry.sh            # 200 pairs per sequence at most
 #   FRAMES=50 scripts/prepare_device_carry.sh

@@ -3,7 +3,7 @@
 # the default rendered sequence (render_sequence --preset drive) or $DATA (KITTI or EuRoC layout)
 # to a bag, replays it frame by frame through the visual_gyro node (play_frames waits for the
 # node's answer to each frame, so nothing is dropped however slow the machine), records ~rotation
-# and ~imu with `rosbag record`, and prints the summary and, last, one JSON line (issue 2's keys plus
+# and ~imu with `rosbag record`, and prints the summary and, last, one JSON line (evaluate's keys plus
 # imu_published and latency_ms) computed from what the node published against the bag's ground truth.
 #
 # Environment: DATA (sequence folder; default: rendered drive), METHOD (vote or paper; default vote),

@@ -122,7 +122,7 @@ TEST(EurocStatic, NoFalseRotationWhenStandingStill) {
   EXPECT_LE(f.at("vote.mean_rate_dps"), 0.3);
 }
 
-// Issue 5's goal: the CUDA backend gives the CPU backend's figures (within 5 %) on every shared
+// The CUDA backend's goal: it gives the CPU backend's figures (within 5 %) on every shared
 // sequence. Both runs use the same matches and seeds; they differ only by float rounding in the
 // hypotheses (see cuda/README.md), so the refined estimates agree far closer than 5 %.
 TEST(SharedSequences, CudaBackendGivesTheCpuFigures) {

@@ -170,7 +170,7 @@ TEST(BearingFile, RunFromAnExportedFileReproducesEvaluateFigures) {
   }
 }
 
-// Issue 5's accuracy goal at the estimator level, on synthetic frames (the shared sequences are
+// The CUDA backend's accuracy goal at the estimator level, on synthetic frames (the shared sequences are
 // checked through evaluate in test_accuracy and by cuda_estimator_check on the GPU machine).
 TEST(CudaEstimator, GivesTheCpuFiguresOnSyntheticFrames) {
   std::string why;

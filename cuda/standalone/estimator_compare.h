@@ -1,6 +1,6 @@
 // The whole estimator (voter plus host refinement) run over the frames of a bearing file on one
 // backend, its figures against the file's truth, and the rule that judges a CUDA run against the
-// CPU run: issue 5's "same accuracy as the CPU backend (same figures within 5 %)". Header-only;
+// CPU run: the CUDA backend must give the CPU backend's figures within 5 %. Header-only;
 // needs Eigen and the core's rotation_estimator.cpp / rotation_refinement.cpp (used by the
 // stand-alone tool cuda_estimator_check and by test/test_cuda_voter.cpp).
 //

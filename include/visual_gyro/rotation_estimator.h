@@ -56,8 +56,8 @@ struct EstimatorSettings {
 };
 
 /// Standard deviation per axis [rad] added to every vote-method rotation covariance: the errors no
-/// residual shows (calibration, time stamps, the ground truth it was calibrated against), 0.03 deg.
-constexpr double kRotationCovarianceFloor = 0.03 * M_PI / 180.0;
+/// residual shows (calibration, time stamps, the ground truth it was calibrated against), 0.035 deg.
+constexpr double kRotationCovarianceFloor = 0.035 * M_PI / 180.0;
 
 /// Checks settings; returns "" when usable, else a message naming the bad setting.
 std::string validateSettings(const EstimatorSettings& settings);

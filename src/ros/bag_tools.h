@@ -79,7 +79,7 @@ struct BagContents {
 /// `<image>/compressed`). Images without a camera_info of the same stamp are dropped. Throws std::runtime_error when the bag cannot be read or holds no images.
 BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics = BagTopics());
 
-/// Errors of the published estimates against the bag's ground truth (issue 2's JSON keys).
+/// Errors of the published estimates against the bag's ground truth (evaluate's JSON keys).
 struct OutputSummary {
   std::string dataset, method, backend;
   int frames = 0;          ///< RotationEstimate messages

@@ -1,6 +1,6 @@
 // summarize_outputs: compares what the visual_gyro node published (a bag recorded with
 // `rosbag record <ns>/rotation <ns>/imu`) with the ground truth in the sequence bag it was fed,
-// prints a summary and, as its last line, issue 2's evaluation JSON plus imu_published and
+// prints a summary and, as its last line, evaluate's JSON line plus imu_published and
 // latency_ms.
 #include <algorithm>
 #include <cstdio>

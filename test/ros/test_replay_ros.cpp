@@ -1,6 +1,6 @@
 // Replay test: a bag made from ../shared/data/kitti_turn (make_bag's code) is played frame by frame
 // through the running visual_gyro node (replay_kitti.test); the published rotations must match the
-// bag's ground truth (yaw RMSE <= 0.4 deg per frame, issue 2's bound), the outputs are stamped at
+// bag's ground truth (yaw RMSE <= 0.4 deg per frame, the paper method's accuracy bound), the outputs are stamped at
 // the midpoint of their two images, and the yaw plot must carry both the estimate and the ground
 // truth, readable through its axis labels. The same bag JPEG-compressed (quality 90) goes through a
 // second nodelet that reads <image>/compressed. Skipped with a message when the data is absent.
@@ -153,7 +153,7 @@ TEST(VisualGyroReplay, KittiTurnJpegCompressed) {
   std::printf("JPEG quality 90:\n%s\n%s\n", summary.text().c_str(), summary.json().c_str());
   EXPECT_EQ(summary.frames, 50);
   EXPECT_GE(summary.valid_frames, 45);
-  EXPECT_LE(summary.yaw_rmse_deg, 0.4) << "issue 2's bound holds on JPEG input too";
+  EXPECT_LE(summary.yaw_rmse_deg, 0.4) << "the paper method's accuracy bound holds on JPEG input too";
   std::filesystem::remove_all(dir);
 }
 
