@@ -30,8 +30,9 @@ constexpr int kMaxRefinedCandidates = 4;
 // angle between the translation and the viewing direction) for which it runs.
 constexpr double kValleySteps[] = {-3.0, -2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0, 3.0};
 constexpr double kMinValleyLateral = 0.3;
-// A general-motion winner with fewer inliers than this fraction of the matches also searches the
-// two axes across the view (its own translation may be that of a wrong basin).
+// A general-motion winner whose refinement kept fewer inliers than this fraction of the best
+// verified count (refinement lost much of the support the looser verification saw: a wrong basin,
+// whose translation says nothing of the true valley) also searches the two axes across the view.
 constexpr double kValleyInlierRatio = 0.85;
 
 // Covariance model (see honestCovariance); calibrated once on the three real sequences with
@@ -491,8 +492,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // minimum, a fraction of a degree to a few degrees from the right one, so the winner is
   // re-verified at rotations stepped along the valley and the best step, when it explains more
   // matches, is refined and competes. The valley is about view x t when the winner's translation
-  // is lateral; a winner that leaves many matches unexplained may sit in a wrong basin whose
-  // translation says nothing of the true valley, so then both axes across the view are searched.
+  // is lateral; a winner whose refinement lost much of its verified support may sit in a wrong
+  // basin whose translation says nothing of the true valley, so then both axes across the view
+  // are searched. Wrong matches alone do not trigger that: verification does not count them either.
   // Under forward motion with the matches explained there is no such valley and nothing runs.
   if (!refined.pure_rotation && !refined.translation.isZero()) {
     Eigen::Vector3d view = Eigen::Vector3d::Zero();
@@ -501,7 +503,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     std::vector<Eigen::Vector3d> axes;
     const Eigen::Vector3d lateral = view.cross(refined.translation);
     if (lateral.norm() >= kMinValleyLateral) axes.push_back(lateral.normalized());
-    if (refined.inliers < kValleyInlierRatio * n) {
+    if (refined.inliers < kValleyInlierRatio * best_verified) {
       const Eigen::Vector3d across = view.cross(std::abs(view.x()) < 0.9 ? Eigen::Vector3d::UnitX()
                                                                         : Eigen::Vector3d::UnitY()).normalized();
       axes.push_back(across);
