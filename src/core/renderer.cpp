@@ -545,30 +545,46 @@ void buildStreetScene(const RenderSettings& settings, Scene* scene) {
   scene->sky = makeTexture(512, 512, 1.0, sky_style, mixSeed(settings.seed, 0x534B59ull));
 }
 
+// The hand-held room: x in [-3.2, 3.8], y in [-1.6, 1.4] (y down: floor below), z in [-4.5, 6.5];
+// the camera at the origin.
+constexpr double kRoomX0 = -3.2, kRoomX1 = 3.8, kRoomY0 = -1.6, kRoomY1 = 1.4, kRoomZ0 = -4.5, kRoomZ1 = 6.5;
+
+/// Floor, ceiling and the four walls of the room, in `style`; gain < 0: a random brightness per
+/// plane.
+void addRoomShell(SceneBuilder* builder, const TextureStyle& style, float gain) {
+  const double x0 = kRoomX0, x1 = kRoomX1, y0 = kRoomY0, y1 = kRoomY1, z0 = kRoomZ0, z1 = kRoomZ1;
+  const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY(), uz = Eigen::Vector3d::UnitZ();
+  builder->addPlane({x0, y1, z0}, ux, uz, x1 - x0, z1 - z0, 2.5, style, false, gain);  // floor
+  builder->addPlane({x0, y0, z0}, ux, uz, x1 - x0, z1 - z0, 3.0, style, false, gain);  // ceiling
+  builder->addPlane({x0, y0, z1}, ux, uy, x1 - x0, y1 - y0, 6.5, style, false, gain);  // front
+  builder->addPlane({x0, y0, z0}, ux, uy, x1 - x0, y1 - y0, 4.5, style, false, gain);  // back
+  builder->addPlane({x0, y0, z0}, uz, uy, z1 - z0, y1 - y0, 3.5, style, false, gain);  // left
+  builder->addPlane({x1, y0, z0}, uz, uy, z1 - z0, y1 - y0, 4.0, style, false, gain);  // right
+}
+
+/// Up to `count` boxes standing on the room's floor at random places (200 tries), each side in
+/// [side_min, 1.5] m, `height` tall, at least `clearance` m plus half its diagonal from the camera.
+void placeRoomBoxes(SceneBuilder* builder, Rng* rng, int count, double side_min, double height_min,
+                    double height_max, double clearance, const TextureStyle& style) {
+  int placed = 0;
+  for (int attempt = 0; attempt < 200 && placed < count; ++attempt) {
+    const double sx = rng->uniform(side_min, 1.5), sz = rng->uniform(side_min, 1.5),
+                 height = rng->uniform(height_min, height_max);
+    const double cx = rng->uniform(kRoomX0 + 0.8, kRoomX1 - 0.8), cz = rng->uniform(kRoomZ0 + 0.8, kRoomZ1 - 0.8);
+    if (std::hypot(cx, cz) < clearance + 0.5 * std::hypot(sx, sz)) continue;
+    builder->addBox(cx, cz, kRoomY1, sx, sz, height, rng->uniform(-0.6, 0.6), std::hypot(cx, cz), style);
+    ++placed;
+  }
+}
+
 void buildRoomScene(const RenderSettings& settings, Scene* scene) {
   SceneBuilder builder(scene, settings.seed);
   Rng rng(mixSeed(settings.seed, 0x524F4F4Dull));
-  // Room x in [-3.2, 3.8], y in [-1.6, 1.4] (y down: floor below), z in [-4.5, 6.5]; camera at 0.
-  const double x0 = -3.2, x1 = 3.8, y0 = -1.6, y1 = 1.4, z0 = -4.5, z1 = 6.5;
-  const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY(), uz = Eigen::Vector3d::UnitZ();
-  const TextureStyle wall;
-  builder.addPlane({x0, y1, z0}, ux, uz, x1 - x0, z1 - z0, 2.5, wall);  // floor
-  builder.addPlane({x0, y0, z0}, ux, uz, x1 - x0, z1 - z0, 3.0, wall);  // ceiling
-  builder.addPlane({x0, y0, z1}, ux, uy, x1 - x0, y1 - y0, 6.5, wall);  // front
-  builder.addPlane({x0, y0, z0}, ux, uy, x1 - x0, y1 - y0, 4.5, wall);  // back
-  builder.addPlane({x0, y0, z0}, uz, uy, z1 - z0, y1 - y0, 3.5, wall);  // left
-  builder.addPlane({x1, y0, z0}, uz, uy, z1 - z0, y1 - y0, 4.0, wall);  // right
+  addRoomShell(&builder, TextureStyle(), -1.0f);
   // Furniture-like boxes at 1.8 m or more from the camera.
   TextureStyle object_style;
   object_style.max_shape = 50.0;
-  int placed = 0;
-  for (int attempt = 0; attempt < 200 && placed < 7; ++attempt) {
-    const double sx = rng.uniform(0.4, 1.5), sz = rng.uniform(0.4, 1.5), height = rng.uniform(0.5, 2.4);
-    const double cx = rng.uniform(x0 + 0.8, x1 - 0.8), cz = rng.uniform(z0 + 0.8, z1 - 0.8);
-    if (std::hypot(cx, cz) < 1.8 + 0.5 * std::hypot(sx, sz)) continue;
-    builder.addBox(cx, cz, y1, sx, sz, height, rng.uniform(-0.6, 0.6), std::hypot(cx, cz), object_style);
-    ++placed;
-  }
+  placeRoomBoxes(&builder, &rng, 7, 0.4, 0.5, 2.4, 1.8, object_style);
 }
 
 /// Structure 1-2 m in front of the camera: a pallet-like box stack, a back wall, the floor and
@@ -602,7 +618,7 @@ constexpr double kDimLow = 45.0, kDimHigh = 75.0;
 void buildDimRoomScene(const RenderSettings& settings, Scene* scene) {
   SceneBuilder builder(scene, settings.seed);
   Rng rng(mixSeed(settings.seed, 0x44494Dull));
-  const double x0 = -3.2, x1 = 3.8, y0 = -1.6, y1 = 1.4, z0 = -4.5, z1 = 6.5;
+  const double x0 = kRoomX0, x1 = kRoomX1, y1 = kRoomY1, z0 = kRoomZ0, z1 = kRoomZ1;
   const Eigen::Vector3d ux = Eigen::Vector3d::UnitX(), uy = Eigen::Vector3d::UnitY(), uz = Eigen::Vector3d::UnitZ();
   // Plain paint: weak shading and faint marks (scuffs, switches, pictures), all within the band.
   TextureStyle wall;
@@ -615,12 +631,7 @@ void buildDimRoomScene(const RenderSettings& settings, Scene* scene) {
   wall.max_shape = 60.0;
   wall.shape_contrast = 14.0;
   const float plain = 1.0f;  // no per-plane brightness change: the contrast stays in the textures
-  builder.addPlane({x0, y1, z0}, ux, uz, x1 - x0, z1 - z0, 2.5, wall, false, plain);  // floor
-  builder.addPlane({x0, y0, z0}, ux, uz, x1 - x0, z1 - z0, 3.0, wall, false, plain);  // ceiling
-  builder.addPlane({x0, y0, z1}, ux, uy, x1 - x0, y1 - y0, 6.5, wall, false, plain);  // front
-  builder.addPlane({x0, y0, z0}, ux, uy, x1 - x0, y1 - y0, 4.5, wall, false, plain);  // back
-  builder.addPlane({x0, y0, z0}, uz, uy, z1 - z0, y1 - y0, 3.5, wall, false, plain);  // left
-  builder.addPlane({x1, y0, z0}, uz, uy, z1 - z0, y1 - y0, 4.0, wall, false, plain);  // right
+  addRoomShell(&builder, wall, plain);
   // Doors: 0.9 x 2.0 m, 1 cm in front of a wall, darker or lighter than it, with a faint grain.
   TextureStyle door = wall;
   door.shape_density = 0.05;
@@ -639,14 +650,7 @@ void buildDimRoomScene(const RenderSettings& settings, Scene* scene) {
   TextureStyle box = wall;
   box.mean_lo = 50.0;
   box.mean_hi = 70.0;
-  int placed = 0;
-  for (int attempt = 0; attempt < 200 && placed < 4; ++attempt) {
-    const double sx = rng.uniform(0.5, 1.5), sz = rng.uniform(0.5, 1.5), height = rng.uniform(0.7, 2.2);
-    const double cx = rng.uniform(x0 + 0.8, x1 - 0.8), cz = rng.uniform(z0 + 0.8, z1 - 0.8);
-    if (std::hypot(cx, cz) < 2.0 + 0.5 * std::hypot(sx, sz)) continue;
-    builder.addBox(cx, cz, y1, sx, sz, height, rng.uniform(-0.6, 0.6), std::hypot(cx, cz), box);
-    ++placed;
-  }
+  placeRoomBoxes(&builder, &rng, 4, 0.5, 0.7, 2.2, 2.0, box);
   for (Plane& p : scene->planes) p.gain = plain;
   // Every grey level within the 30-level band.
   for (Texture& t : scene->textures)

@@ -398,25 +398,25 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   VoteDiagnostics& diagnostics = result.diagnostics;
   diagnostics.prior_used = prior_usable;
   struct Verified {
+    Eigen::Vector3d rotation_vector;  // the candidate as proposed
     VerifiedRotation rotation;
     const char* source;
   };
   std::vector<Verified> verified;
   int best_verified = 0;
-  const char* best_verified_source = "";
-  std::vector<Eigen::Vector3d> considered;
+  bool best_verified_is_prior = false;
   auto consider = [&](const Eigen::Vector3d& rotation_vector, const char* source) {
     // Candidates within half a cell of one already verified would verify to the same inliers.
-    for (const Eigen::Vector3d& c : considered)
-      if ((c - rotation_vector).norm() < 0.5 * settings_.rotation_bin_deg * kDeg) return;
-    considered.push_back(rotation_vector);
+    for (const Verified& c : verified)
+      if ((c.rotation_vector - rotation_vector).norm() < 0.5 * settings_.rotation_bin_deg * kDeg) return;
     ++diagnostics.candidates_verified;
     // Voted candidates are off by a few tenths of a degree under translation: a looser gate lets
     // them gather the inliers (and the epipole) that refinement then tightens.
-    Verified v{verifyRotation(previous, current, expMap(rotation_vector), 2.0 * threshold, seed), source};
+    Verified v{rotation_vector, verifyRotation(previous, current, expMap(rotation_vector), 2.0 * threshold, seed),
+               source};
     if (v.rotation.inliers > best_verified) {
       best_verified = v.rotation.inliers;
-      best_verified_source = source;
+      best_verified_is_prior = std::string(source) == "prior";
     }
     verified.push_back(v);
   };
@@ -454,7 +454,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     // rotation-only triple is biased, and the truth is usually closer to one of them.
     if (narrow && prior_usable) consider(prior.rotation_vector, "prior");
     if (narrow) consider(Eigen::Vector3d::Zero(), "identity");
-    const bool prior_unchallenged = prior_usable && std::string(best_verified_source) == "prior";
+    const bool prior_unchallenged = prior_usable && best_verified_is_prior;
     if (best_verified >= needed && result.winning_votes >= settings_.min_votes && !prior_unchallenged) break;
   }
   if (best_verified == 0) return invalidResult("no candidate rotation (all triples degenerate)");
