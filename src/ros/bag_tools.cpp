@@ -337,7 +337,9 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
 
     const double t0 = e.previous_stamp.toSec();
     const double t1 = t0 + e.dt;  // the current image's stamp, also when outputs use the midpoint
-    const Eigen::Matrix3d r_est = conv::fromMsg(e.rotation).toRotationMatrix();
+    // An invalid estimate scores as the identity, as in the offline evaluation, whatever it carries.
+    const Eigen::Matrix3d r_est =
+        e.valid ? conv::fromMsg(e.rotation).toRotationMatrix() : Eigen::Matrix3d::Identity();
     Eigen::Matrix3d r0, r1, r_true, r_gyro;
     Eigen::Vector3d mean_rate;
     bool have_true = false;

@@ -21,6 +21,7 @@ set(VISUAL_GYRO_ROS_INCLUDES
 add_library(visual_gyro_nodelet
   src/ros/visual_gyro_nodelet.cpp
   src/ros/node_parameters.cpp
+  src/ros/input_probe.cpp
   src/ros/reconfigure_settings.cpp
   src/ros/output_publisher.cpp
   src/ros/node_diagnostics.cpp

@@ -55,6 +55,7 @@ void VisualGyroNodelet::onInit() {
                                       "not installed)"
                                     : "image_transport's compressed plugin");
   }
+  probe_.reset(new InputProbe(nh, pnh, it_.get(), decode_compressed_));
 
   // On the multi-threaded queue: a change is accepted while a frame is being processed. The
   // server reads the initial values from the private parameters (config/visual_gyro.yaml) and
@@ -69,7 +70,10 @@ void VisualGyroNodelet::onInit() {
   // A wall timer on the multi-threaded queue: diagnostics keep coming at 1 Hz when the
   // (simulated) clock stops, and while a slow frame is processed.
   diagnostic_timer_ = getMTNodeHandle().createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
-    updateProbe(false);
+    {
+      std::lock_guard<std::mutex> lock(connect_mutex_);
+      probe_->update(subscribed_ && params_.use_camera_info, false);
+    }
     updater_->force_update();
   });
 
@@ -96,11 +100,8 @@ void VisualGyroNodelet::connectCb() {
     compressed_info_sub_.unsubscribe();
     compressed_image_sub_.shutdown();
     ground_truth_sub_.shutdown();
-    probe_image_sub_.shutdown();
-    probe_compressed_sub_.shutdown();
-    probe_info_sub_.shutdown();
-    probing_ = false;
     subscribed_ = false;
+    probe_->update(false, false);
     reset_pending_ = true;  // the next image after a pause starts afresh
     NODELET_DEBUG("visual_gyro: no subscribers left, unsubscribed from the camera");
   } else if (needed && !subscribed_) {
@@ -128,51 +129,13 @@ void VisualGyroNodelet::connectCb() {
       ground_truth_sub_ = nh.subscribe("ground_truth", 10, &VisualGyroNodelet::groundTruthCb, this);
       subscribed_ = true;
       // Until the first synchronized pair, count what arrives on each topic.
-      updateProbeLocked(true);
+      probe_->update(params_.use_camera_info, true);
       NODELET_DEBUG("visual_gyro: subscribed to %s", nh.resolveName("image").c_str());
     } catch (const image_transport::TransportLoadException& e) {
       NODELET_ERROR_THROTTLE(10.0, "visual_gyro: cannot subscribe to the images (%s); no output until ~image_transport is fixed",
                              e.what());
       health_.setSettingsProblem(std::string("image transport: ") + e.what());
     }
-  }
-}
-
-void VisualGyroNodelet::updateProbe(bool force_start) {
-  std::lock_guard<std::mutex> lock(connect_mutex_);
-  updateProbeLocked(force_start);
-}
-
-void VisualGyroNodelet::updateProbeLocked(bool force_start) {
-  // Probe callbacks only touch atomics: they never wait for the state mutex, so shutting them
-  // down here cannot deadlock with a running camera callback.
-  const bool paired = paired_images_.exchange(0) > 0;
-  const bool wanted = subscribed_ && params_.use_camera_info && (force_start || !paired);
-  if (wanted && !probing_) {
-    ros::NodeHandle& nh = getNodeHandle();
-    image_transport::TransportHints hints("raw", ros::TransportHints(), getPrivateNodeHandle());
-    const boost::function<void(const sensor_msgs::ImageConstPtr&)> on_image =
-        [this](const sensor_msgs::ImageConstPtr&) { ++probe_images_; };
-    const boost::function<void(const sensor_msgs::CameraInfoConstPtr&)> on_info =
-        [this](const sensor_msgs::CameraInfoConstPtr&) { ++probe_infos_; };
-    if (decode_compressed_) {
-      // The same topic the camera subscription reads: the image_transport plugin is missing, so
-      // the probe cannot go through image_transport either.
-      const boost::function<void(const sensor_msgs::CompressedImageConstPtr&)> on_compressed =
-          [this](const sensor_msgs::CompressedImageConstPtr&) { ++probe_images_; };
-      probe_compressed_sub_ =
-          nh.subscribe<sensor_msgs::CompressedImage>(nh.resolveName("image") + "/compressed", 1, on_compressed);
-    } else {
-      probe_image_sub_ = it_->subscribe("image", 1, on_image, ros::VoidPtr(), hints);
-    }
-    probe_info_sub_ = nh.subscribe<sensor_msgs::CameraInfo>(
-        image_transport::getCameraInfoTopic(nh.resolveName("image")), 1, on_info);
-    probing_ = true;
-  } else if (!wanted && probing_) {
-    probe_image_sub_.shutdown();
-    probe_compressed_sub_.shutdown();
-    probe_info_sub_.shutdown();
-    probing_ = false;
   }
 }
 
@@ -202,7 +165,7 @@ void VisualGyroNodelet::reconfigureCb(Config& config, uint32_t /*level*/) {
 void VisualGyroNodelet::cameraCb(const sensor_msgs::ImageConstPtr& image,
                                  const sensor_msgs::CameraInfoConstPtr& info) {
   const ros::WallTime start = ros::WallTime::now();
-  ++paired_images_;
+  probe_->pairArrived();
   health_.imageIn(image->header.stamp.toSec());
   CameraModel camera;
   std::string why;
@@ -419,7 +382,8 @@ void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
     std::lock_guard<std::mutex> lock(config_mutex_);
     context.method = have_config_ ? config_.method : std::string();
   }
-  health_.probedInput(probe_images_.exchange(0), probe_infos_.exchange(0));
+  const std::pair<uint64_t, uint64_t> probed = probe_->take();
+  health_.probedInput(probed.first, probed.second);
   if (!params_.problem.empty()) health_.setSettingsProblem(params_.problem);
   health_.fill(status, ros::WallTime::now().toSec(), context);
 }

@@ -20,6 +20,7 @@
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 
+#include "input_probe.h"
 #include "node_diagnostics.h"
 #include "node_parameters.h"
 #include "output_publisher.h"
@@ -43,8 +44,9 @@ namespace visual_gyro {
 ///
 /// Parts: NodeParameters (node-only parameters, read once), reconfigure_settings (the live
 /// settings -> pipeline settings), OutputPublisher (messages, Imu policy, integration, tf, yaw
-/// plot), NodeDiagnostics (counts and the /diagnostics status). This class keeps the
-/// subscriptions, the frame checks (stamps, camera) and the pipeline.
+/// plot), NodeDiagnostics (counts and the /diagnostics status), InputProbe (which input is
+/// missing). This class keeps the subscriptions, the frame checks (stamps, camera) and the
+/// pipeline.
 ///
 /// Threads and locks. Image callbacks run on the nodelet's single-threaded queue; the diagnostics
 /// timer and the dynamic_reconfigure server run on its multi-threaded queue, so neither waits for
@@ -83,12 +85,6 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   /// it), and a WARN on /diagnostics until a later change is accepted.
   void reconfigureCb(Config& config, uint32_t level);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
-  /// Starts or stops the probe: while subscribed to image + camera_info but no synchronized pair
-  /// arrives, a plain subscription to each counts what does arrive, so the diagnostics can say
-  /// which one is missing. Called by the diagnostics timer (1 Hz) and on subscription.
-  void updateProbe(bool force_start);
-  /// updateProbe() with connect_mutex_ held.
-  void updateProbeLocked(bool force_start);
 
   /// One image with the camera model it was taken with; `wall_start` is when the callback began.
   /// Takes frame_mutex_.
@@ -110,12 +106,8 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::unique_ptr<image_transport::ImageTransport> it_;
   image_transport::CameraSubscriber camera_sub_;
   image_transport::Subscriber image_sub_;
-  image_transport::Subscriber probe_image_sub_;  ///< see updateProbe()
-  ros::Subscriber probe_compressed_sub_;         ///< the probe's image input when decoding ourselves
-  ros::Subscriber probe_info_sub_;
-  bool probing_ = false;                         ///< guarded by connect_mutex_
-  std::atomic<uint64_t> probe_images_{0}, probe_infos_{0};  ///< since the last diagnostics update
-  std::atomic<uint64_t> paired_images_{0};  ///< synchronized callbacks since the last probe check
+  /// Counts what arrives while no pair does; updated (1 Hz, on subscription) under connect_mutex_.
+  std::unique_ptr<InputProbe> probe_;
   ros::Subscriber ground_truth_sub_;
   bool decode_compressed_ = false;  ///< compressed requested, image_transport's plugin missing
   message_filters::Subscriber<sensor_msgs::CompressedImage> compressed_camera_sub_;
