@@ -466,18 +466,19 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   const double prev_stamp = previous_stamp_;
   FrameResult result = pipeline_->processFrame(gray, stamp);
   // Skipped frames leave the pipeline's state untouched.
-  if (result.skipped) {
-    if (result.dt > 0.0) {  // a step below min_dt
-      NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s", result.error.c_str());
+  if (result.skipped()) {
+    if (result.status == FrameStatus::kTimeStepTooSmall) {
+      NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s", result.reason.c_str());
       skip("min_dt");
     } else {
-      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: frame rejected: %s", result.error.c_str());
+      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: frame rejected (%s): %s", frameStatusName(result.status),
+                             result.reason.c_str());
       skip("rejected");
     }
     return;
   }
-  if (result.frozen) {
-    NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.error.c_str());
+  if (result.status == FrameStatus::kFrozenImage) {
+    NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.reason.c_str());
   } else {
     // A frozen image leaves the previous one (and its stamp) in the pipeline; so does the node.
     have_previous_ = true;
@@ -490,7 +491,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   const bool have_output_frame = outputRotation(camera_frame, &to_output);
   const std::string frame_id = output_frame_.empty() ? camera_frame : output_frame_;
   const RotationResult& rot = result.rotation;
-  const bool valid = had_previous && result.has_estimate;
+  const bool valid = had_previous && result.hasEstimate();
   if (valid) integrated_ = integrated_ * rot.rotation;
 
   if (!have_output_frame) {
@@ -531,13 +532,13 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     msg->method = config_.method;
     msg->backend = rot.backend.empty() ? backend_used_ : rot.backend;
     if (!rot.backend.empty()) backend_used_ = rot.backend;
-    msg->detect_ms = rot.times.detect;
-    msg->describe_ms = rot.times.describe;
-    msg->match_ms = rot.times.match;
-    msg->estimate_ms = rot.times.estimate;
-    msg->total_ms = rot.times.total;
+    msg->detect_ms = result.times.detect;
+    msg->describe_ms = result.times.describe;
+    msg->match_ms = result.times.match;
+    msg->estimate_ms = result.times.estimate;
+    msg->total_ms = result.times.total;
     msg->valid = valid;
-    msg->status = valid ? "" : (result.error.empty() ? "invalid estimate" : result.error);
+    msg->status = valid ? "" : std::string(frameStatusName(result.status)) + ": " + result.reason;
 
     const bool publish_imu = valid || config_.publish_invalid;
     sensor_msgs::ImuPtr imu;
