@@ -25,12 +25,6 @@ struct Scene {
   std::vector<bool> inlier;
 };
 
-Matrix3d rotationFromYpr(double yaw, double pitch, double roll) {
-  return (Eigen::AngleAxisd(yaw, Vector3d::UnitY()) * Eigen::AngleAxisd(pitch, Vector3d::UnitX()) *
-          Eigen::AngleAxisd(roll, Vector3d::UnitZ()))
-      .toRotationMatrix();
-}
-
 Vector3d randomBearingInView(std::mt19937& rng, double half_fov_x = 0.5, double half_fov_y = 0.35) {
   std::uniform_real_distribution<double> ux(-half_fov_x, half_fov_x), uy(-half_fov_y, half_fov_y);
   return Vector3d(std::tan(ux(rng)), std::tan(uy(rng)), 1.0).normalized();
@@ -127,7 +121,7 @@ TEST(TripleSolver, ExactForNoiseFreeTriplesAndRandomRotations) {
 TEST(TripleSolver, ExactWhenPointsShareOneDepthUnderTranslation) {
   // Arun with centroid subtraction is exact for a rigid motion of three points: points at one
   // common depth stay a rigid triangle after scaling bearings to that depth.
-  const Matrix3d R = rotationFromYpr(3 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Matrix3d R = vg::rotationFromYawPitchRoll(3 * kDeg, -1 * kDeg, 0.5 * kDeg);
   const Vector3d t(0.0, 0.0, 0.0);
   std::mt19937 rng(5);
   vg::hyp::Vec3f prev[3], cur[3];
@@ -198,7 +192,7 @@ TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {
 }
 
 TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
-  const Scene s = makeScene(rotationFromYpr(2 * kDeg, 0.3 * kDeg, -0.2 * kDeg), Vector3d::Zero(), 300,
+  const Scene s = makeScene(vg::rotationFromYawPitchRoll(2 * kDeg, 0.3 * kDeg, -0.2 * kDeg), Vector3d::Zero(), 300,
                             0.5e-3, 0.3, 5, 50, 11);
   std::vector<vg::hyp::Vec3f> p, c;
   for (size_t i = 0; i < s.current.size(); ++i) {
@@ -232,11 +226,11 @@ TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
 
 TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {
   const double yaw = -2.3 * kDeg;
-  const Scene s = makeScene(rotationFromYpr(yaw, 0.2 * kDeg, 0.1 * kDeg), Vector3d::Zero(), 600,
+  const Scene s = makeScene(vg::rotationFromYawPitchRoll(yaw, 0.2 * kDeg, 0.1 * kDeg), Vector3d::Zero(), 600,
                             0.7e-3, 0.6, 5, 80, 21);
   auto est = vg::createRotationEstimator(cpuSettings("paper"));
   const vg::RotationResult r = est->estimate(s.previous, s.current);
-  ASSERT_TRUE(r.valid) << r.error;
+  ASSERT_TRUE(r.valid()) << vg::frameStatusName(r.status) << ": " << r.reason;
   EXPECT_NEAR(r.yaw, yaw, 0.15 * kDeg);
   EXPECT_EQ(r.hypotheses_drawn, 2000);
   EXPECT_GT(r.winning_votes, 5);
@@ -244,11 +238,11 @@ TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {
 }
 
 TEST(VoteMethod, FullRotationWithSixtyPercentOutliers) {
-  const Matrix3d R = rotationFromYpr(-2.3 * kDeg, 0.8 * kDeg, -0.6 * kDeg);
+  const Matrix3d R = vg::rotationFromYawPitchRoll(-2.3 * kDeg, 0.8 * kDeg, -0.6 * kDeg);
   const Scene s = makeScene(R, Vector3d::Zero(), 600, 0.7e-3, 0.6, 5, 80, 22);
   auto est = vg::createRotationEstimator(cpuSettings("vote"));
   const vg::RotationResult r = est->estimate(s.previous, s.current);
-  ASSERT_TRUE(r.valid) << r.error;
+  ASSERT_TRUE(r.valid()) << vg::frameStatusName(r.status) << ": " << r.reason;
   EXPECT_LT(vg::rotationAngleBetween(r.rotation, R), 0.02 * kDeg);
   EXPECT_TRUE(r.pure_rotation);
   int true_inliers = 0;
@@ -259,13 +253,13 @@ TEST(VoteMethod, FullRotationWithSixtyPercentOutliers) {
 TEST(VoteMethod, ForwardTranslationWithNearStructure) {
   // A car driving 1 m forward past points 3-30 m away while turning: the regime where the paper's
   // rotation-only voting is biased by parallax.
-  const Matrix3d R = rotationFromYpr(1.5 * kDeg, 0.1 * kDeg, 0.05 * kDeg);
+  const Matrix3d R = vg::rotationFromYawPitchRoll(1.5 * kDeg, 0.1 * kDeg, 0.05 * kDeg);
   const Vector3d t(0.05, 0.0, 1.0);
   for (double far : {30.0, 150.0}) {
     const Scene s = makeScene(R, t, 800, 0.7e-3, 0.3, 3, far, 23);
     auto est = vg::createRotationEstimator(cpuSettings("vote"));
     const vg::RotationResult r = est->estimate(s.previous, s.current);
-    ASSERT_TRUE(r.valid) << r.error;
+    ASSERT_TRUE(r.valid()) << vg::frameStatusName(r.status) << ": " << r.reason;
     const double error = vg::rotationAngleBetween(r.rotation, R);
     const double predicted_sigma = std::sqrt(r.covariance.trace());
     RecordProperty(far < 100 ? "near_only_error_deg" : "with_far_error_deg", std::to_string(error / kDeg));
@@ -278,7 +272,7 @@ TEST(VoteMethod, ForwardTranslationWithNearStructure) {
 }
 
 TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
-  const Matrix3d R = rotationFromYpr(1 * kDeg, 0.5 * kDeg, 0.2 * kDeg);
+  const Matrix3d R = vg::rotationFromYawPitchRoll(1 * kDeg, 0.5 * kDeg, 0.2 * kDeg);
   double trace_low = 0, trace_high = 0;
   for (double noise : {0.3e-3, 2e-3}) {
     const Scene s = makeScene(R, Vector3d::Zero(), 500, noise, 0.2, 5, 50, 24);
@@ -286,7 +280,7 @@ TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
     settings.inlier_threshold_deg = 0.5;
     auto est = vg::createRotationEstimator(settings);
     const vg::RotationResult r = est->estimate(s.previous, s.current);
-    ASSERT_TRUE(r.valid) << r.error;
+    ASSERT_TRUE(r.valid()) << vg::frameStatusName(r.status) << ": " << r.reason;
     Eigen::SelfAdjointEigenSolver<Matrix3d> eig(0.5 * (r.covariance + r.covariance.transpose()));
     EXPECT_GT(eig.eigenvalues().minCoeff(), 0.0);
     // What the matches say, without the constant floor for what they cannot show.
@@ -298,14 +292,14 @@ TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
 }
 
 TEST(VoteMethod, WrongPriorFallsBackToTheWideWindow) {
-  const Matrix3d R = rotationFromYpr(12 * kDeg, 0.0, 0.0);
+  const Matrix3d R = vg::rotationFromYawPitchRoll(12 * kDeg, 0.0, 0.0);
   const Scene s = makeScene(R, Vector3d::Zero(), 400, 0.5e-3, 0.2, 5, 50, 25);
   auto est = vg::createRotationEstimator(cpuSettings("vote"));
   vg::RotationPrior prior;
   prior.valid = true;
   prior.rotation_vector = Vector3d(0.0, -5 * kDeg, 0.0);
   const vg::RotationResult r = est->estimate(s.previous, s.current, prior);
-  ASSERT_TRUE(r.valid) << r.error;
+  ASSERT_TRUE(r.valid()) << vg::frameStatusName(r.status) << ": " << r.reason;
   EXPECT_LT(vg::rotationAngleBetween(r.rotation, R), 0.05 * kDeg);
 }
 
@@ -313,30 +307,32 @@ TEST(Estimator, BadInputGivesClearInvalidResult) {
   auto est = vg::createRotationEstimator(cpuSettings("vote"));
   std::vector<Vector3d> two = {Vector3d::UnitZ(), Vector3d(0.1, 0, 1).normalized()};
   vg::RotationResult r = est->estimate(two, two);
-  EXPECT_FALSE(r.valid);
-  EXPECT_NE(r.error.find("too few matches"), std::string::npos) << r.error;
+  EXPECT_EQ(r.status, vg::FrameStatus::kTooFewMatches) << r.reason;
+  EXPECT_FALSE(r.valid());
   EXPECT_TRUE(r.rotation.isIdentity());
 
   std::vector<Vector3d> a(20, Vector3d::UnitZ()), b(19, Vector3d::UnitZ());
   r = est->estimate(a, b);
-  EXPECT_FALSE(r.valid);
-  EXPECT_NE(r.error.find("differ in size"), std::string::npos) << r.error;
+  EXPECT_EQ(r.status, vg::FrameStatus::kBadBearings) << r.reason;
+  EXPECT_NE(r.reason.find("differ in size"), std::string::npos) << r.reason;
 
   const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 50, 0.0, 0.0, 5, 50, 26);
   std::vector<Vector3d> bad = s.current;
   bad[7] = Vector3d(NAN, 0.0, 1.0);
   r = est->estimate(s.previous, bad);
-  EXPECT_FALSE(r.valid);
-  EXPECT_NE(r.error.find("not finite"), std::string::npos) << r.error;
+  EXPECT_EQ(r.status, vg::FrameStatus::kBadBearings) << r.reason;
+  EXPECT_NE(r.reason.find("not finite"), std::string::npos) << r.reason;
   bad[7] = Vector3d(300.0, 200.0, 1.0);  // pixels passed instead of bearings
   r = est->estimate(s.previous, bad);
-  EXPECT_FALSE(r.valid);
-  EXPECT_NE(r.error.find("unit vector"), std::string::npos) << r.error;
+  EXPECT_EQ(r.status, vg::FrameStatus::kBadBearings) << r.reason;
+  EXPECT_NE(r.reason.find("unit vector"), std::string::npos) << r.reason;
 
   // All-identical matches: every triple is degenerate, nothing votes.
   r = est->estimate(a, a);
-  EXPECT_FALSE(r.valid);
-  EXPECT_FALSE(r.error.empty());
+  EXPECT_TRUE(r.status == vg::FrameStatus::kDegenerate || r.status == vg::FrameStatus::kFlatHistogram)
+      << r.status << ": " << r.reason;
+  EXPECT_TRUE(r.rotation.isIdentity());
+  EXPECT_TRUE(r.rotation_vector.isZero());
 }
 
 TEST(Estimator, SettingsAndFactoryErrors) {
@@ -385,7 +381,7 @@ TEST(Estimator, AutoBackendPicksCudaExactlyWhenUsable) {
 }
 
 TEST(Estimator, SameSeedIsReproducible) {
-  const Scene s = makeScene(rotationFromYpr(1 * kDeg, 0, 0), Vector3d(0, 0, 1), 400, 1e-3, 0.3, 3, 40, 27);
+  const Scene s = makeScene(vg::rotationFromYawPitchRoll(1 * kDeg, 0, 0), Vector3d(0, 0, 1), 400, 1e-3, 0.3, 3, 40, 27);
   auto a = vg::createRotationEstimator(cpuSettings("vote"));
   auto b = vg::createRotationEstimator(cpuSettings("vote"));
   const vg::RotationResult ra = a->estimate(s.previous, s.current);
@@ -395,12 +391,12 @@ TEST(Estimator, SameSeedIsReproducible) {
 }
 
 TEST(Angles, YawPitchRollConvention) {
-  const Vector3d ypr = vg::yawPitchRoll(rotationFromYpr(0.3, -0.2, 0.1));
+  const Vector3d ypr = vg::yawPitchRollFromRotation(vg::rotationFromYawPitchRoll(0.3, -0.2, 0.1));
   EXPECT_NEAR(ypr[0], 0.3, 1e-12);
   EXPECT_NEAR(ypr[1], -0.2, 1e-12);
   EXPECT_NEAR(ypr[2], 0.1, 1e-12);
   // A right turn of a forward camera: the new forward axis points to the right (+x) of the old.
-  const Matrix3d right_turn = rotationFromYpr(0.2, 0, 0);
+  const Matrix3d right_turn = vg::rotationFromYawPitchRoll(0.2, 0, 0);
   EXPECT_GT((right_turn * Vector3d::UnitZ()).x(), 0.0);
 }
 
@@ -408,16 +404,16 @@ TEST(PriorTracker, RescalesToTheIntervalAndForgetsAfterAnInvalidEstimate) {
   vg::PriorTracker tracker;
   EXPECT_FALSE(tracker.priorFor(0.1).valid);
   vg::RotationResult r;
-  r.valid = true;
+  r.status = vg::FrameStatus::kValid;
   r.rotation_vector = Vector3d(0.0, 0.02, 0.0);
   tracker.update(r, 0.1);
   const vg::RotationPrior half = tracker.priorFor(0.05);
   ASSERT_TRUE(half.valid);
   EXPECT_TRUE(half.rotation_vector.isApprox(Vector3d(0.0, 0.01, 0.0)));
-  r.valid = false;
+  r.invalidate(vg::FrameStatus::kTooFewInliers, "test");
   tracker.update(r, 0.1);
   EXPECT_FALSE(tracker.priorFor(0.1).valid);
-  r.valid = true;
+  r.status = vg::FrameStatus::kValid;
   tracker.update(r, 0.1);
   tracker.reset();
   EXPECT_FALSE(tracker.priorFor(0.1).valid);

@@ -152,7 +152,7 @@ TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
   EXPECT_EQ(results[3].matching, "guided");
   EXPECT_EQ(results[4].matching, "global_fallback");  // the prior says +2 deg, the camera turned -10
   for (int k = 1; k < 5; ++k) {
-    ASSERT_TRUE(results[k].has_estimate) << "frame " << k << ": " << results[k].error;
+    ASSERT_TRUE(results[k].hasEstimate()) << "frame " << k << ": " << results[k].reason;
     const Eigen::Matrix3d truth = yawPitch(yaws[k - 1], 0.0).transpose() * yawPitch(yaws[k], 0.0);
     EXPECT_LT(vg::rotationAngleBetween(results[k].rotation.rotation, truth), 0.05 * kDeg) << "frame " << k;
     EXPECT_GE(results[k].previous_bearings.size(), 200u) << "frame " << k;

@@ -68,10 +68,10 @@ inline EstimatorRun runEstimator(RotationEstimator* estimator, const std::vector
     }
     const RotationResult r = estimator->estimate(prev, cur, prior.priorFor(dt));
     prior.update(r, dt);
-    const Eigen::Matrix3d R = r.valid ? r.rotation : Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d R = r.valid() ? r.rotation : Eigen::Matrix3d::Identity();
     run.rotations.push_back(R);
-    run.valid.push_back(r.valid ? 1 : 0);
-    run.invalid += r.valid ? 0 : 1;
+    run.valid.push_back(r.valid() ? 1 : 0);
+    run.invalid += r.valid() ? 0 : 1;
     run.estimate_ms.push_back(r.times.estimate);
     run.vote_ms.push_back(r.times.vote);
     run.vote_device_ms.push_back(r.times.vote_device);
@@ -80,7 +80,7 @@ inline EstimatorRun runEstimator(RotationEstimator* estimator, const std::vector
     if (frame.has_truth) {
       const Eigen::Matrix3d truth = truthOf(frame);
       const double rot_err = rotationAngleBetween(R, truth) * 180.0 / M_PI;
-      double yaw_err = (yawPitchRoll(R)[0] - yawPitchRoll(truth)[0]) * 180.0 / M_PI;
+      double yaw_err = (yawPitchRollFromRotation(R)[0] - yawPitchRollFromRotation(truth)[0]) * kRadToDeg;
       yaw_err = std::remainder(yaw_err, 360.0);
       rot_sq += rot_err * rot_err;
       yaw_sq += yaw_err * yaw_err;

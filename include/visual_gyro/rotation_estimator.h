@@ -13,6 +13,8 @@
 #include <functional>
 #include <limits>
 
+#include "visual_gyro/frame_status.h"
+#include "visual_gyro/geometry.h"
 #include "visual_gyro/hypothesis_voter.h"
 #include <memory>
 #include <string>
@@ -62,21 +64,26 @@ constexpr double kRotationCovarianceFloor = 0.035 * M_PI / 180.0;
 /// Checks settings; returns "" when usable, else a message naming the bad setting.
 std::string validateSettings(const EstimatorSettings& settings);
 
-/// Wall-clock time of each stage of a frame [ms].
-struct StageTimes {
-  double detect = 0.0;
-  double describe = 0.0;
-  double match = 0.0;
+/// Wall-clock time of one rotation estimate and its parts [ms].
+struct EstimateTimes {
   double estimate = 0.0;  ///< the whole estimate = vote + refine
-  double total = 0.0;
   /// Part of estimate spent in the hypothesis voter (host clock: for CUDA upload, kernels,
-  /// download and result), summed over the voter calls of the frame.
+  /// download and result), summed over the voter calls of the estimate.
   double vote = 0.0;
   /// Part of vote spent in GPU kernels (CUDA events); 0 on the CPU backend.
   double vote_device = 0.0;
   /// Part of estimate outside the voter, on the host: reading the winner, verification and
   /// refinement (vote method), angles and covariance.
   double refine = 0.0;
+
+  /// Adds another estimate's times (e.g. a second estimate of the same frame).
+  EstimateTimes& operator+=(const EstimateTimes& other) {
+    estimate += other.estimate;
+    vote += other.vote;
+    vote_device += other.vote_device;
+    refine += other.refine;
+    return *this;
+  }
 };
 
 /// How the vote method reached its result, for per-frame diagnostics (evaluate --csv, the
@@ -104,8 +111,13 @@ struct VoteDiagnostics {
 
 /// Result of one rotation estimate.
 struct RotationResult {
-  bool valid = false;  ///< false: not trustworthy (see error); the rotation is then identity
-  std::string error;   ///< why not valid ("" when valid)
+  /// kValid, or why there is no trustworthy rotation (then every rotation field is the identity).
+  FrameStatus status = FrameStatus::kNotEstimated;
+  std::string reason;  ///< details of a status other than kValid, for people ("" when valid)
+  /// True when status is kValid.
+  bool valid() const { return status == FrameStatus::kValid; }
+  /// Marks the result invalid: sets status and reason and resets the rotation to the identity.
+  void invalidate(FrameStatus why, const std::string& details);
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();        ///< b_prev ~ R b_cur
   Eigen::Quaterniond quaternion = Eigen::Quaterniond::Identity();  ///< same rotation (w, x, y, z)
   Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();     ///< axis * angle [rad]
@@ -122,7 +134,7 @@ struct RotationResult {
   bool pure_rotation = false;    ///< vote method: the matches are explained by rotation alone
   std::string backend;           ///< backend that voted: "cpu" or "cuda"
   VoteDiagnostics diagnostics;   ///< vote method: how the result was reached
-  StageTimes times;              ///< estimate (and, from VisualGyro, front-end) times
+  EstimateTimes times;           ///< time of this estimate
 };
 
 /// Optional prior for one estimate: the previous frame's rotation, scaled to this interval.
@@ -148,7 +160,7 @@ class PriorTracker {
 };
 
 /// Estimates the frame-to-frame rotation from matched unit bearings. Not thread-safe; one per
-/// stream of frames. Never throws on bad input: it returns an invalid result naming the problem.
+/// stream of frames. Never throws on bad input: it returns an invalid result whose status names the problem.
 class RotationEstimator {
  public:
   /// Uses `voter` for the hypotheses; see createRotationEstimator for the usual way to make one.
@@ -202,11 +214,5 @@ bool cudaBackendCompiled();
 /// compute capability >= 7.5, kernels loadable). Otherwise false with the reason in *why (may be
 /// null), e.g. "this build has no CUDA support" or "no usable CUDA device: ...".
 bool cudaBackendUsable(std::string* why = nullptr);
-
-/// Yaw, pitch, roll of R = Ry(yaw) Rx(pitch) Rz(roll) [rad] (camera axes x right, y down, z fwd).
-Eigen::Vector3d yawPitchRoll(const Eigen::Matrix3d& rotation);
-
-/// Angle of the rotation R_a^T R_b [rad].
-double rotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 
 }  // namespace visual_gyro

@@ -11,22 +11,34 @@
 
 #include "visual_gyro/camera_model.h"
 #include "visual_gyro/feature_front_end.h"
+#include "visual_gyro/frame_status.h"
 #include "visual_gyro/rotation_estimator.h"
 
 namespace visual_gyro {
 
+/// Wall-clock time of each stage of a frame [ms].
+struct FrameTimes {
+  double detect = 0.0;
+  double describe = 0.0;
+  double match = 0.0;
+  /// The rotation estimates of the frame (two when guided matching fell back to global); their
+  /// parts are in FrameResult::rotation.times.
+  double estimate = 0.0;
+  double total = 0.0;  ///< the whole frame, checks included
+};
+
 /// What the pipeline produced for one image.
 struct FrameResult {
-  /// False for the first frame, after a reset, or for a frame that was rejected (see error).
-  bool has_estimate = false;
-  /// Why the frame gave no (valid) estimate; "" otherwise.
-  std::string error;
-  /// The frame was not used and the pipeline's state is untouched: a bad image or stamp, or a time
-  /// step below min_dt. The next frame pairs with the last used one.
-  bool skipped = false;
-  /// The image is bit-identical to the previous one (a frozen camera or driver repeating a frame):
-  /// no estimate, dt is set, and the state is untouched (the previous image keeps its stamp).
-  bool frozen = false;
+  /// kValid when the frame has an estimate; otherwise why not (see frame_status.h). Skipped
+  /// statuses (frameSkipped) leave the pipeline's state untouched; kFrozenImage keeps the previous
+  /// image and its stamp.
+  FrameStatus status = FrameStatus::kNotEstimated;
+  std::string reason;  ///< details for people ("" when valid)
+  /// True when status is kValid: rotation and angular_velocity hold an estimate.
+  bool hasEstimate() const { return status == FrameStatus::kValid; }
+  /// True when the frame was not used (see frameSkipped).
+  bool skipped() const { return frameSkipped(status); }
+  FrameTimes times;                 ///< this frame's stage times
   RotationResult rotation;          ///< frame-to-frame rotation (previous -> this frame)
   double dt = 0.0;                  ///< this stamp - previous stamp [s]
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< rotation vector / dt [rad/s]
@@ -81,7 +93,7 @@ class VisualGyro {
              const WarningSink& warn = WarningSink());
 
   /// Processes the next image (CV_8UC1; stamp in seconds). Never throws for bad images: returns a
-  /// FrameResult with has_estimate = false and error set. A stamp not after the previous one, or
+  /// FrameResult whose status says why there is no estimate. A stamp not after the previous one, or
   /// less than min_dt after it, is rejected without touching the state (skipped); an image
   /// identical to the previous one is flagged frozen; an estimated rate above max_rate_dps is
   /// invalid.

@@ -5,6 +5,8 @@
 // ellipses) and drawn with a private splitmix64 generator, so a seed gives the same images on every
 // platform (std:: distributions are implementation-defined).
 #include "visual_gyro/renderer.h"
+#include "visual_gyro/geometry.h"
+#include "visual_gyro/random.h"
 
 #include <algorithm>
 #include <cmath>
@@ -26,7 +28,6 @@
 namespace visual_gyro {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kNearDepth = 0.02;      // [m] rays hitting closer than this are ignored
 constexpr double kCameraHeight = 1.65;   // [m] drive/forward: ground is this far below (+y)
 constexpr double kDriveSpeed = 10.0;     // [m/s] drive/forward: 1 m per frame at 10 Hz
@@ -35,40 +36,7 @@ constexpr int kSamples = 2;              // supersampling per axis
 
 double deg(double degrees) { return degrees * kPi / 180.0; }
 
-/// splitmix64 (Steele et al. 2014): tiny and identical everywhere.
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : state_(seed) {}
-  uint64_t next() {
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  /// Uniform in [0, 1).
-  double uniform() { return static_cast<double>(next() >> 11) * (1.0 / 9007199254740992.0); }
-  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
-  double logUniform(double lo, double hi) { return lo * std::exp(std::log(hi / lo) * uniform()); }
-  /// Standard normal (Box-Muller, both outputs used).
-  double normal() {
-    if (has_spare_) {
-      has_spare_ = false;
-      return spare_;
-    }
-    double u1 = uniform();
-    while (u1 <= 1e-300) u1 = uniform();
-    const double u2 = uniform();
-    const double r = std::sqrt(-2.0 * std::log(u1));
-    spare_ = r * std::sin(2.0 * kPi * u2);
-    has_spare_ = true;
-    return r * std::cos(2.0 * kPi * u2);
-  }
-
- private:
-  uint64_t state_;
-  bool has_spare_ = false;
-  double spare_ = 0.0;
-};
+using Rng = SplitMix64;
 
 uint64_t mixSeed(uint64_t a, uint64_t b) {
   Rng rng(a ^ (b * 0xD1B54A32D192ED03ull + 0x8CB92BA72F3D8DD7ull));
@@ -320,13 +288,6 @@ class SceneBuilder {
 // Trajectories
 // ---------------------------------------------------------------------------------------------
 
-/// Camera orientation from yaw (about +y, down), pitch (about +x), roll (about +z):
-/// R = Ry(yaw) Rx(pitch) Rz(roll), camera -> world.
-Eigen::Matrix3d yawPitchRoll(double yaw, double pitch, double roll) {
-  return (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()) *
-          Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()))
-      .toRotationMatrix();
-}
 
 /// A sinusoid that is zero at t = 0 (so the first camera frame is the world frame).
 double wave(double amplitude, double frequency_hz, double phase, double t) {
@@ -375,7 +336,7 @@ class Trajectory {
     if (isRoom()) {
       // Smooth rotation about all three axes, peak rates about 30, 23 and 19 deg/s (up to ~40 deg/s
       // together), and millimetre translation jitter (a hand is never still).
-      *orientation = yawPitchRoll(wave(deg(16.0), 0.30, 0.4, t), wave(deg(8.0), 0.45, 1.3, t),
+      *orientation = rotationFromYawPitchRoll(wave(deg(16.0), 0.30, 0.4, t), wave(deg(8.0), 0.45, 1.3, t),
                                   wave(deg(5.0), 0.60, 2.1, t));
       *position = Eigen::Vector3d(wave(0.003, 1.3, 0.2, t), wave(0.002, 1.7, 0.9, t), wave(0.003, 1.1, 1.7, t));
       return;
@@ -385,14 +346,14 @@ class Trajectory {
       // ~3 deg per frame at 20 Hz together) and translation of decimetres at up to ~0.9 m/s
       // (2-5 cm per frame at 20 Hz), 1-2 m from the structure: strong parallax, the rotation /
       // translation ambiguity of a close scene.
-      *orientation = yawPitchRoll(wave(deg(8.0), 0.9, 0.4, t), wave(deg(5.0), 1.2, 1.3, t),
+      *orientation = rotationFromYawPitchRoll(wave(deg(8.0), 0.9, 0.4, t), wave(deg(5.0), 1.2, 1.3, t),
                                   wave(deg(3.0), 1.5, 2.1, t));
       *position = Eigen::Vector3d(wave(0.12, 0.8, 0.3, t), wave(0.08, 1.1, 1.0, t), wave(0.06, 0.7, 1.9, t));
       return;
     }
     // Car: heading plus small pitch and roll oscillations (~0.1 deg/frame at 10 Hz for drive).
     const double scale = preset_ == "forward" ? 0.5 : 1.0;
-    *orientation = yawPitchRoll(heading(t), scale * wave(deg(0.25), 0.6, 0.3, t), scale * wave(deg(0.2), 0.7, 1.1, t));
+    *orientation = rotationFromYawPitchRoll(heading(t), scale * wave(deg(0.25), 0.6, 0.3, t), scale * wave(deg(0.2), 0.7, 1.1, t));
     *position = interpolate(t);
   }
 

@@ -21,7 +21,7 @@ namespace visual_gyro {
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+constexpr double kDeg = kDegToRad;
 // Candidates whose verified count reaches this fraction of the best one are refined before the
 // choice (at most kMaxRefinedCandidates of them, the best-verified first).
 constexpr double kRefineFraction = 0.6;
@@ -46,17 +46,17 @@ double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-RotationResult invalidResult(const std::string& why) {
+RotationResult invalidResult(FrameStatus status, const std::string& why) {
   RotationResult result;
-  result.valid = false;
-  result.error = why;
+  result.invalidate(status, why);
   return result;
 }
 
 // Rejects what would otherwise become silent garbage downstream: unequal lists, NaNs, non-unit
 // vectors (a caller passing pixels instead of bearings is the likely mistake).
 std::string checkBearings(const std::vector<Eigen::Vector3d>& previous,
-                          const std::vector<Eigen::Vector3d>& current, int min_matches) {
+                          const std::vector<Eigen::Vector3d>& current, int min_matches, FrameStatus* status) {
+  *status = FrameStatus::kBadBearings;
   if (previous.size() != current.size()) {
     std::ostringstream s;
     s << "bearing lists differ in size (" << previous.size() << " previous, " << current.size()
@@ -64,6 +64,7 @@ std::string checkBearings(const std::vector<Eigen::Vector3d>& previous,
     return s.str();
   }
   if (static_cast<int>(previous.size()) < std::max(3, min_matches)) {
+    *status = FrameStatus::kTooFewMatches;
     std::ostringstream s;
     s << "too few matches: " << previous.size() << " (need " << std::max(3, min_matches) << ")";
     return s.str();
@@ -87,22 +88,11 @@ std::vector<hyp::Vec3f> toFloat(const std::vector<Eigen::Vector3d>& v) {
   return out;
 }
 
-Eigen::Matrix3d expMap(const Eigen::Vector3d& w) {
-  const double angle = w.norm();
-  if (angle < 1e-12) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
-}
-
-Eigen::Vector3d logMap(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  return aa.angle() * aa.axis();
-}
-
 void fillAngles(const Eigen::Matrix3d& R, RotationResult* result) {
   result->rotation = R;
   result->quaternion = Eigen::Quaterniond(R).normalized();
-  result->rotation_vector = logMap(R);
-  const Eigen::Vector3d ypr = yawPitchRoll(R);
+  result->rotation_vector = so3Log(R);
+  const Eigen::Vector3d ypr = yawPitchRollFromRotation(R);
   result->yaw = ypr[0];
   result->pitch = ypr[1];
   result->roll = ypr[2];
@@ -128,6 +118,16 @@ int binsFor(double window_deg, double bin_deg) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
+
+void RotationResult::invalidate(FrameStatus why, const std::string& details) {
+  status = why == FrameStatus::kValid ? FrameStatus::kEstimatorFailed : why;
+  reason = details;
+  rotation.setIdentity();
+  quaternion.setIdentity();
+  rotation_vector.setZero();
+  yaw = pitch = roll = 0.0;
+  covariance.setIdentity();
+}
 
 std::string validateSettings(const EstimatorSettings& s) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
@@ -161,17 +161,6 @@ std::string validateSettings(const EstimatorSettings& s) {
   return "";
 }
 
-Eigen::Vector3d yawPitchRoll(const Eigen::Matrix3d& R) {
-  const double yaw = std::atan2(R(0, 2), R(2, 2));
-  const double pitch = std::asin(std::clamp(-R(1, 2), -1.0, 1.0));
-  const double roll = std::atan2(R(1, 0), R(1, 1));
-  return Eigen::Vector3d(yaw, pitch, roll);
-}
-
-double rotationAngleBetween(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
-  return Eigen::AngleAxisd(a.transpose() * b).angle();
-}
-
 // ---------------------------------------------------------------------------------------------
 
 RotationPrior PriorTracker::priorFor(double dt) const {
@@ -181,8 +170,8 @@ RotationPrior PriorTracker::priorFor(double dt) const {
 }
 
 void PriorTracker::update(const RotationResult& result, double dt) {
-  last_.valid = result.valid;
-  last_.rotation_vector = result.valid ? result.rotation_vector : Eigen::Vector3d::Zero();
+  last_.valid = result.valid();
+  last_.rotation_vector = result.valid() ? result.rotation_vector : Eigen::Vector3d::Zero();
   last_dt_ = dt;
 }
 
@@ -212,9 +201,10 @@ RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& p
   const auto start = std::chrono::steady_clock::now();
   vote_ms_ = vote_device_ms_ = 0.0;
   RotationResult result;
-  const std::string problem = checkBearings(previous, current, settings_.min_matches);
+  FrameStatus input_status = FrameStatus::kValid;
+  const std::string problem = checkBearings(previous, current, settings_.min_matches, &input_status);
   if (!problem.empty()) {
-    result = invalidResult(problem);
+    result = invalidResult(input_status, problem);
     result.matches_used = static_cast<int>(std::min(previous.size(), current.size()));
   } else {
     try {
@@ -222,14 +212,13 @@ RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& p
                                            : estimateVote(previous, current, prior);
     } catch (const std::exception& e) {
       // A backend failure mid-stream (e.g. a lost GPU) must not take the caller down.
-      result = invalidResult(std::string("estimator failed: ") + e.what());
+      result = invalidResult(FrameStatus::kEstimatorFailed, std::string("estimator failed: ") + e.what());
     }
     result.matches_used = static_cast<int>(previous.size());
   }
   ++frame_count_;
   result.backend = voter_->name();
   result.times.estimate = elapsedMs(start);
-  result.times.total = result.times.estimate;
   result.times.vote = vote_ms_;
   result.times.vote_device = vote_device_ms_;
   result.times.refine = std::max(0.0, result.times.estimate - vote_ms_);
@@ -265,17 +254,14 @@ RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3
   RotationResult result;
   result.hypotheses_drawn = settings_.hypotheses;
   result.hypotheses_accepted = static_cast<int>(votes.accepted);
-  if (votes.winner < 0) return invalidResult("no hypothesis voted (all triples degenerate)");
+  if (votes.winner < 0) return invalidResult(FrameStatus::kDegenerate, "no hypothesis voted (all triples degenerate)");
   const int count = votes.histogram[votes.winner];
   result.winning_votes = count;
   const double yaw = hyp::binCentre(votes.winner, 0.f, request.grid);
   // Pitch and roll are not voted on; the winning bin's hypotheses' mean stands in for them.
   const double pitch = votes.cell_sums[3 * votes.winner + 1] / count;
   const double roll = votes.cell_sums[3 * votes.winner + 2] / count;
-  const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
-                             Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()) *
-                             Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()))
-                                .toRotationMatrix();
+  const Eigen::Matrix3d R = rotationFromYawPitchRoll(yaw, pitch, roll);
   fillAngles(R, &result);
   // The paper gives no uncertainty; a uniform distribution over the winning bin is the honest floor
   // for yaw, and pitch/roll are as uncertain as the window.
@@ -285,13 +271,11 @@ RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3
                           .asDiagonal();
   result.covariance.diagonal() =
       result.covariance.diagonal().cwiseMax(settings_.min_covariance_rad2);
+  result.status = FrameStatus::kValid;
   if (count < settings_.min_votes) {
-    result.valid = false;
-    result.error = "flat histogram: winning bin has " + std::to_string(count) + " votes (need " +
-                   std::to_string(settings_.min_votes) + ")";
-    return result;
+    result.invalidate(FrameStatus::kFlatHistogram, "winning bin has " + std::to_string(count) +
+                                                       " votes (need " + std::to_string(settings_.min_votes) + ")");
   }
-  result.valid = true;
   return result;
 }
 
@@ -362,7 +346,7 @@ Eigen::Matrix3d honestCovariance(const RefinedRotation& winner, const std::vecto
   Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   double weights = 1.0;
   for (const RefinedRotation& c : contenders) {
-    const Eigen::Vector3d d = logMap(winner.rotation.transpose() * c.rotation);
+    const Eigen::Vector3d d = so3Log(winner.rotation.transpose() * c.rotation);
     if (d.norm() < 1e-9) continue;  // converged to the winner itself
     const double z = (winner.inliers - c.inliers) / std::sqrt(std::max(1, winner.inliers));
     const double w = std::exp(-0.5 * z * z);
@@ -412,7 +396,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     ++diagnostics.candidates_verified;
     // Voted candidates are off by a few tenths of a degree under translation: a looser gate lets
     // them gather the inliers (and the epipole) that refinement then tightens.
-    Verified v{rotation_vector, verifyRotation(previous, current, expMap(rotation_vector), 2.0 * threshold, seed),
+    Verified v{rotation_vector, verifyRotation(previous, current, so3Exp(rotation_vector), 2.0 * threshold, seed),
                source};
     if (v.rotation.inliers > best_verified) {
       best_verified = v.rotation.inliers;
@@ -457,7 +441,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     const bool prior_unchallenged = prior_usable && best_verified_is_prior;
     if (best_verified >= needed && result.winning_votes >= settings_.min_votes && !prior_unchallenged) break;
   }
-  if (best_verified == 0) return invalidResult("no candidate rotation (all triples degenerate)");
+  if (best_verified == 0) return invalidResult(FrameStatus::kDegenerate, "no candidate rotation (all triples degenerate)");
 
   // Refine, then choose. The verification's count (a loose gate, a translation from a few
   // samples) ranks candidates only roughly: along the rotation/translation valley of a close scene
@@ -517,7 +501,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     bool stepped = false;
     for (const Eigen::Vector3d& axis : axes) {
       for (double step_deg : kValleySteps) {
-        const Eigen::Matrix3d stepped_rotation = expMap(step_deg * kDeg * axis) * refined.rotation;
+        const Eigen::Matrix3d stepped_rotation = so3Exp(step_deg * kDeg * axis) * refined.rotation;
         const VerifiedRotation v = verifyRotation(previous, current, stepped_rotation, threshold, seed + 7);
         if (v.inliers > best_step.inliers) {
           best_step = v;
@@ -561,15 +545,16 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   diagnostics.rotation_inliers = best.rotation_inliers;
   diagnostics.epipolar_inliers = best.epipolar_inliers;
   diagnostics.residual_sigma = refined.residual_sigma;
-  if (prior_usable) diagnostics.prior_offset = rotationAngleBetween(expMap(prior.rotation_vector), refined.rotation);
+  if (prior_usable) diagnostics.prior_offset = rotationAngleBetween(so3Exp(prior.rotation_vector), refined.rotation);
 
+  result.status = FrameStatus::kValid;
   if (result.winning_votes < settings_.min_votes) {
-    result.error = "flat histogram: winning cell has " + std::to_string(result.winning_votes) +
-                   " votes (need " + std::to_string(settings_.min_votes) + ")";
+    result.invalidate(FrameStatus::kFlatHistogram, "winning cell has " + std::to_string(result.winning_votes) +
+                                                       " votes (need " + std::to_string(settings_.min_votes) + ")");
   } else if (refined.inliers < needed) {
-    result.error = "too few inliers: " + std::to_string(refined.inliers) + " of " + std::to_string(n);
+    result.invalidate(FrameStatus::kTooFewInliers,
+                      std::to_string(refined.inliers) + " inliers of " + std::to_string(n) + " matches");
   }
-  result.valid = result.error.empty();
   return result;
 }
 

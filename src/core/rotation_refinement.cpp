@@ -1,4 +1,6 @@
 #include "rotation_refinement.h"
+#include "visual_gyro/geometry.h"
+#include "visual_gyro/random.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,18 +14,6 @@ namespace {
 constexpr double kRotationGateScale = 1.25;
 // Translation is estimated only when it explains this fraction more matches than pure rotation.
 constexpr double kTranslationGain = 0.15;
-
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
-Eigen::Matrix3d expMap(const Eigen::Vector3d& w) {
-  const double angle = w.norm();
-  if (angle < 1e-15) return Eigen::Matrix3d::Identity() + skew(w);
-  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
-}
 
 // Two unit vectors orthogonal to t: the tangent plane in which t is updated.
 Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
@@ -83,14 +73,6 @@ inline bool withinEpipolarGate(const Eigen::Vector3d& t, const Eigen::Vector3d& 
 double huberWeight(double r, double k) {
   const double a = std::abs(r);
   return a <= k ? 1.0 : k / a;
-}
-
-// splitmix64: a tiny deterministic generator for the translation RANSAC (reproducible runs).
-uint64_t nextRandom(uint64_t* state) {
-  uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
 }
 
 // Matches whose bearings point into opposite half-spaces after the rotation cannot be one point.
@@ -250,7 +232,7 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
       damped.diagonal() += lambda * (here.A.diagonal().array() + 1e-12).matrix();
       const Eigen::Matrix<double, 5, 1> step = damped.ldlt().solve(-here.g);
       if (!step.allFinite()) break;
-      const Eigen::Matrix3d R_new = R * expMap(step.head<3>());
+      const Eigen::Matrix3d R_new = R * so3Exp(step.head<3>());
       const Eigen::Vector3d t_new = (t + here.B * step.tail<2>()).normalized();
       accumulate(R_new, t_new, &there);
       if (there.cost <= here.cost) {
@@ -335,14 +317,14 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
   const bool translation_can_win =
       moving.size() >= 2 && moving.size() >= kTranslationGain * out.rotation_inliers;
   if (translation_can_win) {
-    uint64_t state = seed ^ 0x5452414E534C4154ull;  // "TRANSLAT"
+    SplitMix64 rng(seed ^ 0x5452414E534C4154ull);  // "TRANSLAT"
     // 2-point samples among the moving matches, stopped adaptively: once the best translation
     // explains a fraction w of them, log(0.01) / log(1 - w^2) samples find a clean pair with 99 %
     // probability (at most 64, enough for 50 % wrong matches); the best is then refitted.
     int trials = 64;
     for (int trial = 0; trial < trials; ++trial) {
-      const size_t a = moving[nextRandom(&state) % moving.size()];
-      const size_t b = moving[nextRandom(&state) % moving.size()];
+      const size_t a = moving[rng.next() % moving.size()];
+      const size_t b = moving[rng.next() % moving.size()];
       const Eigen::Vector3d t_raw = normals[a].cross(normals[b]);
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();

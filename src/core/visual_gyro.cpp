@@ -41,16 +41,6 @@ bool bitIdentical(const cv::Mat& a, const cv::Mat& b) {
   return true;
 }
 
-/// An invalid result reads as no rotation (the RotationResult convention), with the reason.
-void markInvalid(const std::string& why, RotationResult* rotation) {
-  rotation->valid = false;
-  rotation->error = why;
-  rotation->rotation.setIdentity();
-  rotation->quaternion.setIdentity();
-  rotation->rotation_vector.setZero();
-  rotation->yaw = rotation->pitch = rotation->roll = 0.0;
-}
-
 std::string formatNumber(double v) {
   std::ostringstream out;
   out << v;
@@ -68,7 +58,7 @@ std::string validatePlausibilitySettings(const VisualGyroSettings& s) {
 std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,
                                const VisualGyroSettings& settings) {
   if (!(dt > 0.0)) return "time step " + formatNumber(dt) + " s is not positive";
-  const double rate_dps = rotation_vector.norm() / dt * 180.0 / M_PI;
+  const double rate_dps = rotation_vector.norm() / dt * kRadToDeg;
   if (!(rate_dps <= settings.max_rate_dps)) {
     return "rate " + formatNumber(rate_dps) + " deg/s above max_rate_dps (" +
            formatNumber(settings.max_rate_dps) + " deg/s) over a " + formatNumber(dt) +
@@ -110,56 +100,49 @@ void VisualGyro::setSettings(const VisualGyroSettings& settings) {
 FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   const auto start = std::chrono::steady_clock::now();
   FrameResult result;
-  // Every early return below leaves the state untouched.
-  result.skipped = true;
-  if (gray.empty()) {
-    result.error = "empty image";
+  // Every early return before the front end leaves the state untouched.
+  auto reject = [&result](FrameStatus status, const std::string& why) {
+    result.status = status;
+    result.reason = why;
     return result;
-  }
+  };
+  if (gray.empty()) return reject(FrameStatus::kImageRejected, "empty image");
   if (gray.type() != CV_8UC1) {
-    result.error = "image must be 8-bit single channel (CV_8UC1), got type " + std::to_string(gray.type());
-    return result;
+    return reject(FrameStatus::kImageRejected,
+                  "image must be 8-bit single channel (CV_8UC1), got type " + std::to_string(gray.type()));
   }
   if (gray.cols != camera_.width() || gray.rows != camera_.height()) {
-    result.error = "image is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
-                   " but the camera model is " + std::to_string(camera_.width()) + "x" +
-                   std::to_string(camera_.height());
-    return result;
+    return reject(FrameStatus::kImageRejected,
+                  "image is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
+                      " but the camera model is " + std::to_string(camera_.width()) + "x" +
+                      std::to_string(camera_.height()));
   }
   if (gray.cols < kMinImageSide || gray.rows < kMinImageSide) {
-    result.error = "image " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
-                   " is smaller than the descriptor patch (at least " + std::to_string(kMinImageSide) +
-                   "x" + std::to_string(kMinImageSide) + " px)";
-    return result;
+    return reject(FrameStatus::kImageRejected,
+                  "image " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
+                      " is smaller than the descriptor patch (at least " + std::to_string(kMinImageSide) +
+                      "x" + std::to_string(kMinImageSide) + " px)");
   }
-  if (!std::isfinite(stamp)) {
-    result.error = "stamp is not finite";
-    return result;
-  }
+  if (!std::isfinite(stamp)) return reject(FrameStatus::kStampRejected, "stamp is not finite");
   if (has_previous_ && !(stamp > previous_stamp_)) {
-    result.error = "stamp " + std::to_string(stamp) + " is not after the previous one (" +
-                   std::to_string(previous_stamp_) + ")";
-    return result;
+    return reject(FrameStatus::kStampRejected, "stamp " + std::to_string(stamp) +
+                                                   " is not after the previous one (" +
+                                                   std::to_string(previous_stamp_) + ")");
   }
   if (has_previous_ && stamp - previous_stamp_ < settings_.min_dt) {
     result.dt = stamp - previous_stamp_;
-    result.error = "time step " + formatNumber(result.dt) + " s below min_dt (" +
-                   formatNumber(settings_.min_dt) + " s): frame skipped";
-    return result;
+    return reject(FrameStatus::kTimeStepTooSmall, "time step " + formatNumber(result.dt) + " s below min_dt (" +
+                                                      formatNumber(settings_.min_dt) + " s): frame skipped");
   }
   if (has_previous_ && bitIdentical(gray, previous_gray_)) {
     // A driver repeating its last frame with a new stamp would otherwise read as "no rotation"
     // while the camera may be turning. The previous image keeps its stamp: it is when that
     // content was captured.
-    result.skipped = false;
-    result.frozen = true;
     result.dt = stamp - previous_stamp_;
-    result.error = "image identical to the previous one (camera frozen?)";
-    return result;
+    return reject(FrameStatus::kFrozenImage, "image identical to the previous one (camera frozen?)");
   }
-  result.skipped = false;
 
-  StageTimes times;
+  FrameTimes& times = result.times;
   FrameFeatures& features = features_;
   try {
     auto t0 = std::chrono::steady_clock::now();
@@ -169,8 +152,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     front_end_.describe(gray, corners_, &features);
     times.describe = elapsedMs(t0);
   } catch (const std::exception& e) {
-    result.error = std::string("front end failed: ") + e.what();
-    return result;
+    return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
   }
   result.features = static_cast<int>(features.keypoints.size());
   std::vector<Eigen::Vector3d>& bearings = bearings_;
@@ -179,7 +161,8 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     bearings[i] = camera_.bearing(features.keypoints[i].x, features.keypoints[i].y);
 
   if (!has_previous_) {
-    result.error = "first frame";
+    result.status = FrameStatus::kFirstFrame;
+    result.reason = "first frame: nothing to pair with yet";
   } else {
     const double dt = stamp - previous_stamp_;
     result.dt = dt;
@@ -189,19 +172,18 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
       matchFrames(prior);
     } catch (const std::exception& e) {
       // Before any state changed: the frame is rejected, the previous one stays.
-      result.error = std::string("front end failed: ") + e.what();
-      return result;
+      return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
     }
     times.match = elapsedMs(t0);
     collectMatches(&result);
     if (settings_.run_estimator) {
       result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
                                              prior);
-      if (!result.rotation.valid && matching_ == "guided") {
+      if (!result.rotation.valid() && matching_ == "guided") {
         // Guided matches that give no estimate: the prior may have sent the search to the wrong
         // place (plenty of chance matches there, few consistent). Global matching does not
         // depend on it; its estimate replaces the guided one, and both estimates' times count.
-        const StageTimes guided_times = result.rotation.times;
+        const EstimateTimes guided_times = result.rotation.times;
         t0 = std::chrono::steady_clock::now();
         front_end_.match(previous_features_, features_, &matches_);
         matching_ = "global_fallback";
@@ -209,33 +191,29 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         collectMatches(&result);
         result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
                                                prior);
-        result.rotation.times.estimate += guided_times.estimate;
-        result.rotation.times.vote += guided_times.vote;
-        result.rotation.times.vote_device += guided_times.vote_device;
-        result.rotation.times.refine += guided_times.refine;
+        result.rotation.times += guided_times;
       }
-      if (result.rotation.valid) {
+      if (result.rotation.valid()) {
         const std::string implausible = checkRatePlausible(result.rotation.rotation_vector, dt, settings_);
-        if (!implausible.empty()) markInvalid(implausible, &result.rotation);
+        if (!implausible.empty()) result.rotation.invalidate(FrameStatus::kImplausibleRate, implausible);
       }
       // An implausible rotation is no prior for the next frame either.
       prior_.update(result.rotation, dt);
       updatePriorUncertainty(prior, result.rotation);
-      result.has_estimate = result.rotation.valid;
-      result.error = result.rotation.error;
-      if (result.has_estimate) {
+      result.status = result.rotation.status;
+      result.reason = result.rotation.reason;
+      if (result.hasEstimate()) {
         result.angular_velocity = result.rotation.rotation_vector / dt;
         result.angular_velocity_covariance = result.rotation.covariance / (dt * dt);
       }
+      times.estimate = result.rotation.times.estimate;
+    } else {
+      result.status = FrameStatus::kNotEstimated;
+      result.reason = "run_estimator is off: matches only";
     }
     result.matching = matching_;
   }
-  times.estimate = result.rotation.times.estimate;
-  times.vote = result.rotation.times.vote;
-  times.vote_device = result.rotation.times.vote_device;
-  times.refine = result.rotation.times.refine;
   times.total = elapsedMs(start);
-  result.rotation.times = times;
 
   has_previous_ = true;
   previous_stamp_ = stamp;
@@ -266,10 +244,7 @@ void VisualGyro::matchFrames(const RotationPrior& prior) {
     matching_ = "global";
     return;
   }
-  const double angle = prior.rotation_vector.norm();
-  const Eigen::Matrix3d rotation =
-      angle > 0.0 ? Eigen::AngleAxisd(angle, prior.rotation_vector / angle).toRotationMatrix()
-                  : Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d rotation = so3Exp(prior.rotation_vector);
   front_end_.predict(camera_, rotation, prior_uncertainty_rad_, previous_keypoint_bearings_,
                      &prediction_);
   front_end_.matchGuided(previous_features_, features_, prediction_, &matches_);
@@ -283,7 +258,7 @@ void VisualGyro::matchFrames(const RotationPrior& prior) {
 }
 
 void VisualGyro::updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate) {
-  if (!estimate.valid) {
+  if (!estimate.valid()) {
     // The next frame has no prior (global matching); the uncertainty is set again once it has.
     prior_uncertainty_rad_ = 0.0;
     return;
@@ -291,12 +266,7 @@ void VisualGyro::updatePriorUncertainty(const RotationPrior& prior, const Rotati
   // How far the constant-rate prediction was off this time (from identity when there was no
   // prior), plus three standard deviations of the estimate the next prior is made from.
   const Eigen::Vector3d predicted = prior.valid ? prior.rotation_vector : Eigen::Vector3d::Zero();
-  const double angle = predicted.norm();
-  const Eigen::Matrix3d predicted_rotation =
-      angle > 0.0 ? Eigen::AngleAxisd(angle, predicted / angle).toRotationMatrix()
-                  : Eigen::Matrix3d::Identity();
-  const double error =
-      Eigen::AngleAxisd(predicted_rotation.transpose() * estimate.rotation).angle();
+  const double error = rotationAngleBetween(so3Exp(predicted), estimate.rotation);
   const double sigma = std::sqrt(std::max(0.0, estimate.covariance.diagonal().maxCoeff()));
   prior_uncertainty_rad_ = std::isfinite(error + sigma) ? error + 3.0 * sigma : 0.0;
 }

@@ -17,6 +17,7 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include "ros_conversions.h"
+#include "visual_gyro/geometry.h"
 #include "visual_gyro/rotation_estimator.h"
 
 namespace visual_gyro {
@@ -25,8 +26,6 @@ namespace bag_tools {
 namespace conv = ros_conversions;
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 ros::Time toRosTime(double seconds) {
   ros::Time t;
@@ -45,18 +44,6 @@ boost::shared_ptr<ros::M_string> latchedHeader(const std::string& topic) {
   (*header)["callerid"] = "/make_bag";
   (*header)["latching"] = "1";
   return header;
-}
-
-Eigen::Matrix3d expMap(const Eigen::Vector3d& v) {
-  const double angle = v.norm();
-  if (angle < 1e-15) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
-}
-
-double wrapDeg(double a) {
-  while (a > 180.0) a -= 360.0;
-  while (a < -180.0) a += 360.0;
-  return a;
 }
 
 std::string jsonNumber(double v, int precision = 4) {
@@ -296,7 +283,7 @@ class Truth {
     for (size_t i = 0; i + 1 < times.size(); ++i) {
       const double dt = times[i + 1] - times[i];
       const Eigen::Vector3d w = 0.5 * (rateAt(times[i]) + rateAt(times[i + 1]));
-      acc = acc * expMap(w * dt);
+      acc = acc * so3Exp(w * dt);
       sum += w * dt;
     }
     *r = acc;
@@ -356,7 +343,7 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
     }
     if (!have_true) continue;
     const double rot_err = rotationAngleBetween(r_est, r_true) * kRadToDeg;
-    const double yaw_err = std::abs(wrapDeg((yawPitchRoll(r_est)[0] - yawPitchRoll(r_true)[0]) * kRadToDeg));
+    const double yaw_err = std::abs(wrapAngleDeg((yawPitchRollFromRotation(r_est)[0] - yawPitchRollFromRotation(r_true)[0]) * kRadToDeg));
     rot_sq += rot_err * rot_err;
     rot_max = std::max(rot_max, rot_err);
     yaw_sq += yaw_err * yaw_err;

@@ -6,18 +6,12 @@
 
 #include <Eigen/Geometry>
 
+#include "visual_gyro/geometry.h"
+
 namespace visual_gyro {
 namespace imu_integration {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
-
-Eigen::Matrix3d expMap(const Eigen::Vector3d& v) {
-  const double angle = v.norm();
-  if (angle < 1e-15) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
-}
 
 /// Truth at t (clamped to the samples' span), slerp between neighbours.
 Eigen::Quaterniond truthAt(const std::vector<TruthSample>& truth, double t) {
@@ -49,11 +43,11 @@ IntegrationError integrationError(const std::vector<RateSample>& rates, const st
   // Advances the integration to t, switching rates at each message stamp on the way.
   auto advance = [&](double t) {
     while (next < rates.size() && rates[next].stamp <= t) {
-      integrated = integrated * expMap(rate * (rates[next].stamp - t_integrated));
+      integrated = integrated * so3Exp(rate * (rates[next].stamp - t_integrated));
       t_integrated = rates[next].stamp;
       rate = rates[next++].rate;
     }
-    integrated = integrated * expMap(rate * (t - t_integrated));
+    integrated = integrated * so3Exp(rate * (t - t_integrated));
     t_integrated = t;
   };
 

@@ -17,6 +17,12 @@ namespace {
 uint32_t count(int n) { return static_cast<uint32_t>(std::max(n, 0)); }
 }  // namespace
 
+std::string statusText(const FrameResult& result, bool valid) {
+  if (valid) return "";
+  const std::string name = frameStatusName(result.status);
+  return result.reason.empty() ? name : name + ": " + result.reason;
+}
+
 visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, const std_msgs::Header& header,
                                                   const Eigen::Matrix3d& to_output, const OutputSettings& settings) {
   const FrameResult& result = *frame.result;
@@ -53,13 +59,13 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   msg->inliers = count(rot.inliers);
   msg->method = settings.method;
   msg->backend = frame.backend;
-  msg->detect_ms = rot.times.detect;
-  msg->describe_ms = rot.times.describe;
-  msg->match_ms = rot.times.match;
-  msg->estimate_ms = rot.times.estimate;
-  msg->total_ms = rot.times.total;
+  msg->detect_ms = result.times.detect;
+  msg->describe_ms = result.times.describe;
+  msg->match_ms = result.times.match;
+  msg->estimate_ms = result.times.estimate;
+  msg->total_ms = result.times.total;
   msg->valid = frame.valid;
-  msg->status = frame.status;
+  msg->status = statusText(result, frame.valid);
   return msg;
 }
 

@@ -38,13 +38,16 @@ struct FrameOutput {
   bool had_previous = false;      ///< the frame was paired with a previous one: an estimate exists
   double previous_stamp = 0.0;    ///< that previous image's stamp [s]
   const FrameResult* result = nullptr;
-  bool valid = false;             ///< the estimate can be trusted
-  std::string status;             ///< why it is not valid ("" when valid)
+  bool valid = false;             ///< paired and result->hasEstimate(): the estimate can be trusted
   std::string backend;            ///< the backend that estimated it
   ros::WallTime wall_start;       ///< when the image callback began (latency)
 };
 
 namespace output_messages {
+
+/// The RotationEstimate's status text: "" when valid, else the status' name and its reason
+/// ("too_few_matches: 5 (need 8)").
+std::string statusText(const FrameResult& result, bool valid);
 
 /// The RotationEstimate of `frame` (had_previous must be true), with rotation, rates and
 /// covariances rotated into the output frame by `to_output` (output <- camera). An invalid

@@ -280,18 +280,19 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   const double previous_stamp = previous_stamp_;
   const FrameResult result = pipeline_->processFrame(gray, stamp);
   // Skipped frames leave the pipeline's state untouched.
-  if (result.skipped) {
-    if (result.dt > 0.0) {  // a step below min_dt
-      NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s", result.error.c_str());
+  if (result.skipped()) {
+    if (result.status == FrameStatus::kTimeStepTooSmall) {
+      NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s", result.reason.c_str());
       health_.skipped("min_dt");
     } else {
-      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: frame rejected: %s", result.error.c_str());
-      health_.skipped("rejected");
+      NODELET_ERROR_THROTTLE(10.0, "visual_gyro: frame rejected (%s): %s", frameStatusName(result.status),
+                             result.reason.c_str());
+      health_.skipped(frameStatusName(result.status));
     }
     return;
   }
-  if (result.frozen) {
-    NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.error.c_str());
+  if (result.status == FrameStatus::kFrozenImage) {
+    NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.reason.c_str());
   } else {
     // A frozen image leaves the previous one (and its stamp) in the pipeline; so does the node.
     have_previous_ = true;
@@ -308,8 +309,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   frame.had_previous = had_previous;
   frame.previous_stamp = previous_stamp;
   frame.result = &result;
-  frame.valid = had_previous && result.has_estimate;
-  frame.status = frame.valid ? "" : (result.error.empty() ? "invalid estimate" : result.error);
+  frame.valid = had_previous && result.hasEstimate();
   frame.backend = backend_used_;
   frame.wall_start = wall_start;
   if (!outputs_->publish(frame, outputSettings(config))) health_.skipped("tf");

@@ -4,23 +4,15 @@
 #include <cmath>
 #include <cstdio>
 
-#include "visual_gyro/rotation_estimator.h"
+#include "visual_gyro/geometry.h"
 
 namespace visual_gyro {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 // Smallest y span of a panel: a nearly constant line is not magnified into noise.
 constexpr double kMinYawSpanDeg = 10.0;
 constexpr double kMinRateSpanDps = 10.0;
-
-/// Yaw [deg] continued from `previous` (no jump of 360 between points).
-double unwrapDeg(double yaw_deg, double previous) {
-  while (yaw_deg - previous > 180.0) yaw_deg -= 360.0;
-  while (yaw_deg - previous < -180.0) yaw_deg += 360.0;
-  return yaw_deg;
-}
 
 std_msgs::ColorRGBA rgba(float r, float g, float b, float a = 1.0f) {
   std_msgs::ColorRGBA c;
@@ -86,7 +78,7 @@ void YawPlot::addEstimate(double stamp, const Eigen::Matrix3d& integrated) {
   }
   const double t = stamp - t0_;
   if (!estimate_.empty() && t <= estimate_.back().t) return;
-  const double yaw = unwrapDeg(yawPitchRoll(integrated)[0] * kRadToDeg, estimate_last_yaw_);
+  const double yaw = unwrapAngleDeg(yawPitchRollFromRotation(integrated)[0] * kRadToDeg, estimate_last_yaw_);
   estimate_last_yaw_ = yaw;
   estimate_.push_back({t, yaw});
   trim();
@@ -112,7 +104,7 @@ void YawPlot::pushTruth(double stamp, const Eigen::Quaterniond& orientation) {
   }
   if (t < -settings_.truth_tolerance || (!truth_.empty() && t <= truth_.back().t)) return;
   const Eigen::Matrix3d relative = truth_reference_.toRotationMatrix().transpose() * orientation.toRotationMatrix();
-  const double yaw = unwrapDeg(yawPitchRoll(relative)[0] * kRadToDeg, truth_last_yaw_);
+  const double yaw = unwrapAngleDeg(yawPitchRollFromRotation(relative)[0] * kRadToDeg, truth_last_yaw_);
   truth_last_yaw_ = yaw;
   truth_.push_back({t, yaw});
 }

@@ -30,11 +30,11 @@ class OrbFrontEnd : public ComparisonFrontEnd {
   OrbFrontEnd() : orb_(cv::ORB::create(kFeatures)), matcher_(cv::NORM_HAMMING, /*crossCheck=*/true) {}
 
   bool process(const cv::Mat& gray, std::vector<cv::Point2f>* previous, std::vector<cv::Point2f>* current,
-               StageTimes* times) override {
+               FrameTimes* times) override {
     checkImage(gray, "orb");
     previous->clear();
     current->clear();
-    *times = StageTimes();
+    *times = FrameTimes();
     auto t0 = std::chrono::steady_clock::now();
     std::vector<cv::KeyPoint> keypoints;
     orb_->detect(gray, keypoints);
@@ -71,11 +71,11 @@ class OrbFrontEnd : public ComparisonFrontEnd {
 class KltFrontEnd : public ComparisonFrontEnd {
  public:
   bool process(const cv::Mat& gray, std::vector<cv::Point2f>* previous, std::vector<cv::Point2f>* current,
-               StageTimes* times) override {
+               FrameTimes* times) override {
     checkImage(gray, "klt");
     previous->clear();
     current->clear();
-    *times = StageTimes();
+    *times = FrameTimes();
     const bool have_previous = !previous_image_.empty() && previous_image_.size() == gray.size();
     if (have_previous && !previous_corners_.empty()) {
       // Track the corners found in the previous image into this one.

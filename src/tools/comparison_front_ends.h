@@ -10,7 +10,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "visual_gyro/rotation_estimator.h"
+#include "visual_gyro/visual_gyro.h"
 
 namespace visual_gyro {
 namespace tools {
@@ -24,7 +24,7 @@ class ComparisonFrontEnd {
   /// `times` receives detect, describe and match [ms] (a stage the front end does not have is 0).
   /// Throws std::invalid_argument for an empty or non-8-bit image.
   virtual bool process(const cv::Mat& gray, std::vector<cv::Point2f>* previous,
-                       std::vector<cv::Point2f>* current, StageTimes* times) = 0;
+                       std::vector<cv::Point2f>* current, FrameTimes* times) = 0;
 };
 
 /// Names accepted by makeComparisonFrontEnd: "orb", "klt".

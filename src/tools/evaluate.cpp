@@ -416,7 +416,7 @@ struct FramePair {
   double dt = 0.0;            ///< [s]
   std::vector<Eigen::Vector3d> previous, current;  ///< matched bearings (after --max-matches/--outliers)
   int matches_found = 0;      ///< matches the front end found (before --max-matches)
-  StageTimes front_end;       ///< detect, describe, match of the current frame [ms]
+  FrameTimes front_end;       ///< detect, describe, match of the current frame [ms]
   std::string matching;       ///< native front end: guided, global or global_fallback
   bool has_truth = false;
   /// The truth is from poses, not from a (biased) gyro: only then is it fit to judge a covariance.
@@ -538,7 +538,7 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
                         std::to_string(gray.rows) + " but the camera model is " +
                         std::to_string(seq.camera.width()) + "x" + std::to_string(seq.camera.height()));
       }
-      const bool paired = other->process(gray, &previous_pixels, &current_pixels, &r.rotation.times);
+      const bool paired = other->process(gray, &previous_pixels, &current_pixels, &r.times);
       if (paired) {
         r.dt = seq.stamps[k] - seq.stamps[previous_index];
         r.matching = o.front_end;
@@ -549,24 +549,19 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
       }
     } else {
       r = gyro.processFrame(gray, seq.stamps[k]);
-      if (have_previous && r.skipped && r.dt > 0.0) {
-        // A time step below min_dt: the pipeline skipped the frame, the next pairs with the previous.
-        if (skipped_min_dt++ == 0) first_skip = "image " + seq.image_paths[k] + ": " + r.error;
+      if (r.status == FrameStatus::kTimeStepTooSmall) {
+        // The pipeline skipped the frame; the next pairs with the previous.
+        if (skipped_min_dt++ == 0) first_skip = "image " + seq.image_paths[k] + ": " + r.reason;
         continue;
       }
+      // Image-level problems (size mismatch, bad stamp) are data errors; a frozen frame and the
+      // front-end pipeline's own estimate (guided matching) failing are not.
+      if (r.skipped()) throw DataError("image " + seq.image_paths[k] + ": " + r.reason);
     }
     if (!have_previous) {
       have_previous = true;
       previous_index = k;
-      if (r.features == 0 && !r.error.empty() && r.error != "first frame") {
-        throw DataError("image " + seq.image_paths[k] + ": " + r.error);
-      }
       continue;
-    }
-    // Image-level problems (size mismatch, bad stamp) are data errors; a frozen frame and the
-    // front-end pipeline's own estimate (guided matching) failing are not.
-    if (r.previous_bearings.empty() && !r.error.empty() && !r.frozen && r.error != r.rotation.error) {
-      throw DataError("image " + seq.image_paths[k] + ": " + r.error);
     }
     FramePair p;
     p.previous_index = previous_index;
@@ -575,8 +570,8 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
     p.previous = std::move(r.previous_bearings);
     p.current = std::move(r.current_bearings);
     p.matches_found = static_cast<int>(p.previous.size());
-    p.front_end = r.rotation.times;
-    p.frozen = r.frozen;
+    p.front_end = r.times;
+    p.frozen = r.status == FrameStatus::kFrozenImage;
     p.matching = r.matching;
     fillTruth(seq, &p);
     const uint64_t seed = o.has_seed ? o.seed : settings.estimator.seed;
@@ -588,7 +583,7 @@ std::vector<FramePair> runFrontEnd(const Sequence& seq, const VisualGyroSettings
     }
     pairs.push_back(std::move(p));
     // A frozen image left the pipeline's previous frame in place; so does this loop.
-    if (!r.frozen) previous_index = k;
+    if (!p.frozen) previous_index = k;
   }
   if (progress) std::fprintf(stderr, "\n");
   if (skipped_min_dt > 0) {
@@ -682,12 +677,12 @@ class OwnEstimatorRunner : public MethodRunner {
     out.vote_device_ms = r.backend == "cuda" ? r.times.vote_device : kNaN;  // no kernels on the CPU
     out.refine_ms = r.times.refine;
     prior_.update(r, pair.dt);
-    out.valid = r.valid;
-    out.error = r.error;
+    out.valid = r.valid();
+    out.error = r.valid() ? "" : std::string(frameStatusName(r.status)) + ": " + r.reason;
     out.inliers = r.inliers;
     out.pure_rotation = r.pure_rotation;
     out.diagnostics = r.diagnostics;
-    if (r.valid) {
+    if (r.valid()) {
       out.rotation = r.rotation;
       out.rotation_vector = r.rotation_vector;
       out.has_covariance = true;

@@ -17,7 +17,7 @@ namespace om = visual_gyro::output_messages;
 
 FrameResult turnResult() {
   FrameResult r;
-  r.has_estimate = true;
+  r.status = visual_gyro::FrameStatus::kValid;
   r.rotation.rotation = Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()).toRotationMatrix();
   r.rotation.yaw = 0.02;
   r.rotation.covariance = Eigen::Matrix3d::Identity() * 1e-6;
@@ -37,7 +37,6 @@ FrameOutput frameOf(const FrameResult& r, bool valid) {
   f.previous_stamp = 10.0;
   f.result = &r;
   f.valid = valid;
-  f.status = valid ? "" : "too few matches";
   f.backend = "cpu";
   return f;
 }
@@ -48,6 +47,7 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
   settings.method = "vote";
   const auto msg = om::rotationEstimate(frameOf(r, true), std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   EXPECT_TRUE(msg->valid);
+  EXPECT_EQ(msg->status, "");
   EXPECT_NEAR(msg->dt, 0.1, 1e-12);
   EXPECT_NEAR(msg->yaw, 0.02, 1e-12);
   EXPECT_NEAR(msg->angular_velocity.y, 0.2, 1e-12);
@@ -61,11 +61,13 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
 }
 
 TEST(OutputMessages, InvalidEstimateIsTheIdentityAndItsImuFollowsThePolicy) {
-  const FrameResult r = turnResult();  // a rotation the plausibility checks refused
+  FrameResult r = turnResult();  // a rotation left in place, to show that it is not published
+  r.status = visual_gyro::FrameStatus::kTooFewMatches;
+  r.reason = "5 (need 8)";
   OutputSettings settings;
   const auto msg = om::rotationEstimate(frameOf(r, false), std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   EXPECT_FALSE(msg->valid);
-  EXPECT_EQ(msg->status, "too few matches");
+  EXPECT_EQ(msg->status, "too_few_matches: 5 (need 8)");
   EXPECT_DOUBLE_EQ(msg->rotation.w, 1.0);
   EXPECT_DOUBLE_EQ(msg->yaw, 0.0);
   EXPECT_DOUBLE_EQ(msg->angular_velocity.y, 0.0);
