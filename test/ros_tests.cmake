@@ -50,7 +50,7 @@ target_compile_definitions(test_replay_ros PRIVATE VISUAL_GYRO_DEFAULT_DATA="${V
 
 # Publication rates (hztest) of ~imu and /diagnostics, fed by a rendered camera.
 add_executable(publish_rendered EXCLUDE_FROM_ALL test/ros/publish_rendered.cpp)
-target_link_libraries(publish_rendered visual_gyro_ros_tools ${catkin_LIBRARIES})
+target_link_libraries(publish_rendered visual_gyro_ros_test_support)
 if(TARGET tests)
   add_dependencies(tests publish_rendered)
 endif()
