@@ -9,7 +9,7 @@
 #include <string>
 
 #include "cuda_voter.h"
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 
 namespace visual_gyro {
 namespace bearings {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "standalone/bearing_file.h"
+#include "bearing_file.h"
 #include "standalone/check_common.h"
 #include "standalone/estimator_compare.h"
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "standalone/bearing_file.h"
+#include "bearing_file.h"
 #include "standalone/check_common.h"
 
 using namespace visual_gyro;

@@ -18,7 +18,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "standalone/bearing_frames.h"
+#include "bearing_frames.h"
 #include "visual_gyro/rotation_estimator.h"
 
 namespace visual_gyro {

@@ -210,10 +210,9 @@ void VisualGyroNodelet::updateProbeLocked(bool force_start) {
 
 void VisualGyroNodelet::reconfigureCb(Config& config, uint32_t /*level*/) {
   std::lock_guard<std::mutex> lock(state_mutex_);
-  const VisualGyroSettings settings = settingsFromConfig(config);
-  std::string problem = validateFrontEndSettings(settings.front_end);
-  if (problem.empty()) problem = validateSettings(settings.estimator);
-  if (problem.empty()) problem = validatePlausibilitySettings(settings);
+  VisualGyroSettings settings;
+  std::string problem = settingsFromConfig(config, &settings);
+  if (problem.empty()) problem = validateVisualGyroSettings(settings);
   if (!problem.empty()) {
     if (have_config_) {
       NODELET_ERROR("visual_gyro: rejected settings (%s); keeping the previous ones", problem.c_str());
@@ -237,47 +236,30 @@ void VisualGyroNodelet::reconfigureCb(Config& config, uint32_t /*level*/) {
   }
 }
 
-VisualGyroSettings VisualGyroNodelet::settingsFromConfig(const Config& c) const {
-  VisualGyroSettings s;
-  s.front_end.fast_threshold = c.fast_threshold;
-  s.front_end.max_features = c.max_features;
-  s.front_end.grid_cols = c.grid_cols;
-  s.front_end.grid_rows = c.grid_rows;
-  s.front_end.smoothing_sigma = c.smoothing_sigma;
-  s.front_end.max_ratio = c.max_ratio;
-  s.front_end.max_hamming = c.max_hamming;
-  s.front_end.cross_check = c.cross_check;
-  s.front_end.min_fast_threshold = c.min_fast_threshold;
-  s.front_end.matching = c.matching;
-  s.front_end.guided_radius_px = c.guided_radius_px;
-  s.front_end.guided_radius_growth = c.guided_radius_growth;
-  s.front_end.guided_min_matches = c.guided_min_matches;
-  EstimatorSettings& e = s.estimator;
-  e.method = c.method;
-  e.backend = backend_request_;
-  e.hypotheses = c.hypotheses;
-  e.seed = static_cast<uint64_t>(c.seed);
-  e.min_separation_deg = c.min_separation_deg;
-  e.min_triangle_area_deg2 = c.min_triangle_area_deg2;
-  e.centroid_subtraction = c.centroid_subtraction;
-  e.yaw_bin_deg = c.yaw_bin_deg;
-  e.yaw_window_deg = c.yaw_window_deg;
-  e.rotation_bin_deg = c.rotation_bin_deg;
-  e.rotation_window_deg = c.rotation_window_deg;
-  e.wide_window_deg = c.wide_window_deg;
-  e.max_angle_change_deg = c.max_angle_change_deg;
-  e.candidates = c.candidates;
-  e.inlier_threshold_deg = c.inlier_threshold_deg;
-  e.use_prior = c.use_prior;
-  e.refine_iterations = c.refine_iterations;
-  e.min_matches = c.min_matches;
-  e.min_votes = c.min_votes;
-  e.min_inlier_ratio = c.min_inlier_ratio;
-  e.min_covariance_rad2 = c.min_covariance_rad2;
-  s.min_dt = c.min_dt;
-  s.max_rate_dps = c.max_rate_dps;
-  s.run_estimator = true;
-  return s;
+std::string VisualGyroNodelet::settingsFromConfig(const Config& config, VisualGyroSettings* settings) const {
+  // Every pipeline setting the cfg declares goes through the settings table by name; the others
+  // (node behaviour) are read from config_ where they are used.
+  *settings = VisualGyroSettings();
+  std::string problem = applySetting(settings, "backend", backend_request_);
+  for (const auto& description : Config::__getParamDescriptions__()) {
+    if (findSetting(description->name) == nullptr) continue;
+    boost::any value;
+    description->getValue(config, value);
+    std::string text;
+    if (description->type == "int") {
+      text = std::to_string(boost::any_cast<int>(value));
+    } else if (description->type == "double") {
+      text = SettingField<VisualGyroSettings>::formatNumber(boost::any_cast<double>(value));
+    } else if (description->type == "bool") {
+      text = boost::any_cast<bool>(value) ? "true" : "false";
+    } else {
+      text = boost::any_cast<std::string>(value);
+    }
+    const std::string why = applySetting(settings, description->name, text);
+    if (problem.empty()) problem = why;
+  }
+  settings->run_estimator = true;
+  return problem;
 }
 
 bool VisualGyroNodelet::cameraFromParameters(int width, int height, CameraModel* camera,
@@ -433,7 +415,9 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   if (!pipeline_ || !have_camera_ || !sameCamera(camera, camera_)) {
     try {
       if (!pipeline_) {
-        VisualGyroSettings settings = settingsFromConfig(config_);
+        VisualGyroSettings settings;
+        const std::string problem = settingsFromConfig(config_, &settings);
+        if (!problem.empty()) throw std::invalid_argument("settings: " + problem);
         WarningSink warn = [this](const std::string& message) {
           last_warning_ = message;
           NODELET_WARN("visual_gyro: %s", message.c_str());
@@ -442,7 +426,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
         backend_used_ = pipeline_->backendName();
         NODELET_INFO("visual_gyro: camera %dx%d fx %.2f fy %.2f, method '%s', backend '%s' (requested '%s')",
                      camera.width(), camera.height(), camera.fx(), camera.fy(),
-                     settings.estimator.method.c_str(), backend_used_.c_str(), backend_request_.c_str());
+                     methodName(settings.estimator.method), backend_used_.c_str(), backend_request_.c_str());
       } else {
         pipeline_->setCamera(camera);
         NODELET_INFO_THROTTLE(10.0, "visual_gyro: camera changed (%dx%d fx %.2f); state reset", camera.width(),

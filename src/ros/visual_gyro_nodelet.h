@@ -91,7 +91,9 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   bool outputRotation(const std::string& camera_frame, Eigen::Matrix3d* rotation);
   /// Publishes the yaw plot (when it has a subscriber) as of `stamp` [s].
   void publishYawPlot(double stamp);
-  VisualGyroSettings settingsFromConfig(const Config& config) const;
+  /// Pipeline settings from a dynamic_reconfigure config (every cfg entry the settings table
+  /// knows, plus ~backend): "" or the first setting that does not parse or is out of range.
+  std::string settingsFromConfig(const Config& config, VisualGyroSettings* settings) const;
 
   // --- ROS handles ---
   std::unique_ptr<image_transport::ImageTransport> it_;

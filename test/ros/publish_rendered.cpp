@@ -25,7 +25,7 @@ int main(int argc, char** argv) {
   pnh.param<std::string>("frame_id", frame_id, "test_camera_optical");
 
   visual_gyro::RenderSettings settings;
-  settings.preset = "handheld";
+  settings.preset = visual_gyro::RenderPreset::kHandheld;
   settings.setCentredCamera(320, 240, 250.0);
   settings.noise_sigma = 1.0;
   std::vector<sensor_msgs::Image> images;

@@ -45,7 +45,7 @@ bool waitFor(const std::function<bool()>& pred, double timeout) {
 
 visual_gyro::RenderSettings scene() {
   visual_gyro::RenderSettings s;
-  s.preset = "handheld";
+  s.preset = visual_gyro::RenderPreset::kHandheld;
   s.setCentredCamera(320, 240, 250.0);
   s.noise_sigma = 1.0;
   return s;

@@ -65,7 +65,7 @@ bool waitFor(const std::function<bool()>& pred, double timeout) {
 
 visual_gyro::RenderSettings renderSettings() {
   visual_gyro::RenderSettings s;
-  s.preset = "handheld";  // a room around the camera: rotation-only views are well textured
+  s.preset = visual_gyro::RenderPreset::kHandheld;  // a room around the camera: rotation-only views are well textured
   s.setCentredCamera(320, 240, 250.0);
   s.noise_sigma = 1.0;
   return s;
