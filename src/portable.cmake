@@ -4,6 +4,7 @@
 # exactly one target that compiles it, defined here.
 #
 #   visual_gyro_voter_objects      src/voter: hypothesis math, the voter interface, the CPU gold voter
+#   visual_gyro_cli_objects        src/tools/command_line: the commands' command-line conventions
 #   visual_gyro_bearing_objects    src/io/bearing_file: the bearing-file format (plain C++)
 #   visual_gyro_estimator_objects  rotation estimator, refinement, frame status, setting fields (Eigen)
 #   visual_gyro_metrics_objects    src/eval/metrics: per-frame errors and their summaries (Eigen)
@@ -16,11 +17,14 @@ get_filename_component(VISUAL_GYRO_PUBLIC_INCLUDE "${CMAKE_CURRENT_LIST_DIR}/../
 add_library(visual_gyro_voter_objects OBJECT "${VISUAL_GYRO_SRC_DIR}/voter/cpu_voter.cpp")
 target_include_directories(visual_gyro_voter_objects PUBLIC "${VISUAL_GYRO_SRC_DIR}/voter")
 
+add_library(visual_gyro_cli_objects OBJECT "${VISUAL_GYRO_SRC_DIR}/tools/command_line.cpp")
+target_include_directories(visual_gyro_cli_objects PUBLIC "${VISUAL_GYRO_SRC_DIR}/tools")
+
 add_library(visual_gyro_bearing_objects OBJECT "${VISUAL_GYRO_SRC_DIR}/io/bearing_file.cpp")
 target_include_directories(visual_gyro_bearing_objects PUBLIC
   "${VISUAL_GYRO_SRC_DIR}/io" "${VISUAL_GYRO_SRC_DIR}/voter" "${VISUAL_GYRO_PUBLIC_INCLUDE}")
 
-foreach(objects visual_gyro_voter_objects visual_gyro_bearing_objects)
+foreach(objects visual_gyro_voter_objects visual_gyro_cli_objects visual_gyro_bearing_objects)
   set_target_properties(${objects} PROPERTIES POSITION_INDEPENDENT_CODE ON)
   target_compile_features(${objects} PUBLIC cxx_std_17)
   target_compile_options(${objects} PRIVATE $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra>)
