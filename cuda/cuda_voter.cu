@@ -9,7 +9,7 @@
 
 #include "cuda_check.cuh"
 #include "cuda_voter.h"
-#include "visual_gyro/hypothesis_math.h"
+#include "hypothesis_math.h"
 
 namespace visual_gyro {
 namespace {

@@ -2,7 +2,7 @@
 // or global (rotation-vector) histograms, winner found on the device.
 //
 // Plain C++ (no CUDA headers), so that the core library and the tests include it with any C++
-// compiler: `#include "../../cuda/cuda_voter.h"` from src/core, or `#include "cuda_voter.h"` with
+// compiler: `#include "cuda_voter.h"` from src/core, or `#include "cuda_voter.h"` with
 // the include directories of target visual_gyro_cuda. Available only in builds where
 // VISUAL_GYRO_WITH_CUDA is defined (the library is then linked into visual_gyro_core).
 #pragma once
@@ -11,7 +11,7 @@
 #include <memory>
 #include <string>
 
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 
 namespace visual_gyro {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "../cuda/standalone/bearing_file.h"
+#include "bearing_file.h"
 #include "../cuda/standalone/estimator_compare.h"
 #include "test_support.h"
 #include "visual_gyro/rotation_estimator.h"
@@ -104,7 +104,7 @@ TEST(BearingFile, ReadsVersionOneAndRejectsBadFilesWithTheLine) {
 TEST(EstimatorComparison, PassesIdenticalRunsAndCatchesDifferentOnes) {
   const std::vector<BearingFrame> frames = syntheticFrames(6, 600, 1.0);
   EstimatorSettings settings;
-  settings.backend = "cpu";
+  settings.backend = BackendChoice::kCpu;
   const bearings::EstimatorRun a = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
   const bearings::EstimatorRun b = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
   ASSERT_EQ(a.frames, 6);
@@ -156,8 +156,8 @@ TEST(BearingFile, RunFromAnExportedFileReproducesEvaluateFigures) {
   }
   for (const char* method : {"vote", "paper"}) {
     EstimatorSettings settings;
-    settings.backend = "cpu";
-    settings.method = method;
+    settings.backend = BackendChoice::kCpu;
+    ASSERT_TRUE(parseMethod(method, &settings.method));
     const bearings::EstimatorRun run = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
     EXPECT_EQ(run.invalid, jsonNumber(out, method, "invalid")) << method;
     for (const auto& [key, value] : {std::pair<const char*, double>{"rot_rmse_deg", run.rot_rmse_deg},
@@ -178,10 +178,10 @@ TEST(CudaEstimator, GivesTheCpuFiguresOnSyntheticFrames) {
   for (const char* method : {"vote", "paper"}) {
     const std::vector<BearingFrame> frames = syntheticFrames(20, 2000, 1.0);
     EstimatorSettings settings;
-    settings.method = method;
-    settings.backend = "cpu";
+    ASSERT_TRUE(parseMethod(method, &settings.method));
+    settings.backend = BackendChoice::kCpu;
     const bearings::EstimatorRun cpu = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
-    settings.backend = "cuda";
+    settings.backend = BackendChoice::kCuda;
     auto estimator = createRotationEstimator(settings);
     ASSERT_EQ(estimator->backendName(), "cuda");
     const bearings::EstimatorRun gpu = bearings::runEstimator(estimator.get(), frames);

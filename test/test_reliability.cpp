@@ -24,7 +24,7 @@ constexpr double kDeg = M_PI / 180.0;
 
 vg::RenderSettings scene() {
   vg::RenderSettings s;
-  s.preset = "handheld";
+  s.preset = vg::RenderPreset::kHandheld;
   s.setCentredCamera(320, 240, 250.0);
   s.noise_sigma = 1.0;
   return s;
@@ -42,7 +42,7 @@ vg::CameraModel camera() {
 
 vg::VisualGyroSettings cpu() {
   vg::VisualGyroSettings s;
-  s.estimator.backend = "cpu";
+  s.estimator.backend = vg::BackendChoice::kCpu;
   return s;
 }
 
@@ -111,24 +111,24 @@ TEST(Plausibility, FrozenCameraIsFlaggedAndNeverValid) {
 TEST(Plausibility, SettingsOfTheirOwnAreValidated) {
   vg::VisualGyroSettings s = cpu();
   s.min_dt = -1.0;
-  EXPECT_FALSE(vg::validatePlausibilitySettings(s).empty());
+  EXPECT_FALSE(vg::validateVisualGyroSettings(s).empty());
   EXPECT_THROW(vg::VisualGyro(camera(), s), std::invalid_argument);
   s = cpu();
   s.max_rate_dps = 0.0;
-  EXPECT_FALSE(vg::validatePlausibilitySettings(s).empty());
+  EXPECT_FALSE(vg::validateVisualGyroSettings(s).empty());
   s.max_rate_dps = NAN;
-  EXPECT_FALSE(vg::validatePlausibilitySettings(s).empty());
-  EXPECT_EQ(vg::validatePlausibilitySettings(cpu()), "");
+  EXPECT_FALSE(vg::validateVisualGyroSettings(s).empty());
+  EXPECT_EQ(vg::validateVisualGyroSettings(cpu()), "");
 }
 
 TEST(Plausibility, TinyBinsAreRefusedNotCastOutOfRange) {
   // 2 * 6 / 1e-12 bins is far beyond int: refused by name, with no undefined conversion.
   vg::EstimatorSettings e;
   e.rotation_bin_deg = 1e-12;
-  EXPECT_TRUE(contains(vg::validateSettings(e), "too fine")) << vg::validateSettings(e);
+  EXPECT_TRUE(contains(vg::validateSettings(e), "rotation_bin_deg must be in [0.01, 10] deg")) << vg::validateSettings(e);
   e = vg::EstimatorSettings();
   e.yaw_bin_deg = 1e-300;
-  EXPECT_TRUE(contains(vg::validateSettings(e), "too fine")) << vg::validateSettings(e);
+  EXPECT_TRUE(contains(vg::validateSettings(e), "yaw_bin_deg must be in [0.001, 10] deg")) << vg::validateSettings(e);
 }
 
 TEST(Calibration, ImplausibleCalibrationIsNamed) {
@@ -279,10 +279,10 @@ TEST_F(EvaluateBadInput, OutOfRangeOptionsAreNamed) {
   int status = 0;
   std::string out = evaluate(root_ + "/good --set rotation_bin_deg=1e-12", &status);
   EXPECT_EQ(status, 2) << out;
-  EXPECT_TRUE(contains(out, "too fine")) << out;
+  EXPECT_TRUE(contains(out, "rotation_bin_deg must be in [0.01, 10] deg")) << out;
   out = evaluate(root_ + "/good --set yaw_bin_deg=1e-300 --method paper", &status);
   EXPECT_EQ(status, 2) << out;
-  EXPECT_TRUE(contains(out, "too fine")) << out;
+  EXPECT_TRUE(contains(out, "yaw_bin_deg must be in [0.001, 10] deg")) << out;
   out = evaluate(root_ + "/good --hypotheses 99999999999", &status);
   EXPECT_EQ(status, 2) << out;
   EXPECT_TRUE(contains(out, "1..10000000")) << out;

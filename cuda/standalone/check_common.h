@@ -1,5 +1,5 @@
-// Settings shared by cuda_voter_check and cuda_voter_bench: the two vote grids, command-line
-// helpers, the CUDA voter's availability. Plain C++.
+// Settings shared by cuda_voter_check and cuda_voter_bench: the two vote grids and the CUDA
+// voter's availability. Plain C++ (command lines: src/tools/command_line.h).
 #pragma once
 
 #include <chrono>
@@ -9,7 +9,7 @@
 #include <string>
 
 #include "cuda_voter.h"
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 
 namespace visual_gyro {
 namespace bearings {
@@ -67,45 +67,6 @@ inline std::unique_ptr<HypothesisVoter> tryCudaVoter(int device, std::string* wh
 /// Milliseconds since `start` on the host's steady clock.
 inline double msSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
-
-/// Walks the command line: next() yields each argument, value() the one after it (the option's
-/// value; throws std::invalid_argument naming the option when there is none).
-class ArgCursor {
- public:
-  ArgCursor(int argc, char** argv) : argc_(argc), argv_(argv) {}
-  bool next(std::string* arg) {
-    if (++i_ >= argc_) return false;
-    current_ = argv_[i_];
-    *arg = current_;
-    return true;
-  }
-  const char* value() {
-    if (i_ + 1 >= argc_) throw std::invalid_argument(current_ + " needs a value");
-    return argv_[++i_];
-  }
-
- private:
-  int argc_;
-  char** argv_;
-  int i_ = 0;
-  std::string current_;
-};
-
-/// Parses a non-negative integer option value; throws std::invalid_argument naming the option.
-inline unsigned long long parseCount(const std::string& option, const char* text) {
-  char* end = nullptr;
-  const unsigned long long v = std::strtoull(text, &end, 10);
-  if (end == text || *end != '\0' || text[0] == '-') throw std::invalid_argument(option + " needs a count, got \"" + text + "\"");
-  return v;
-}
-
-/// Parses a floating-point option value; throws std::invalid_argument naming the option.
-inline double parseNumber(const std::string& option, const char* text) {
-  char* end = nullptr;
-  const double v = std::strtod(text, &end);
-  if (end == text || *end != '\0') throw std::invalid_argument(option + " needs a number, got \"" + text + "\"");
-  return v;
 }
 
 }  // namespace bearings

@@ -11,10 +11,12 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <limits>
 #include <string>
 #include <vector>
 
-#include "standalone/bearing_file.h"
+#include "bearing_file.h"
+#include "command_line.h"
 #include "standalone/check_common.h"
 #include "standalone/estimator_compare.h"
 
@@ -36,19 +38,6 @@ void usage() {
       "  --csv PATH        one row per file, method and backend\n";
 }
 
-std::vector<std::string> splitComma(const std::string& text) {
-  std::vector<std::string> out;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t end = text.find(',', start);
-    const std::string item = text.substr(start, end == std::string::npos ? std::string::npos : end - start);
-    if (!item.empty()) out.push_back(item);
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  return out;
-}
-
 void printRun(const EstimatorRun& r) {
   char kernels[32] = "-";  // no kernels on the CPU
   if (r.backend == "cuda") std::snprintf(kernels, sizeof kernels, "%.3f", medianOf(r.vote_device_ms));
@@ -68,28 +57,26 @@ int main(int argc, char** argv) {
   bool require_gpu = false;
   std::string csv_path;
   try {
-    ArgCursor args(argc, argv);
-    std::string arg;
-    while (args.next(&arg)) {
-      auto value = [&args] { return args.value(); };
+    for (cli::Arguments args(argc, argv); args.next();) {
+      const std::string arg = args.current();
       if (arg == "-h" || arg == "--help") {
         usage();
         return 0;
       } else if (arg == "--method") {
-        methods = splitComma(value());
+        methods = args.listValue();
         for (const std::string& m : methods)
           if (m != "vote" && m != "paper") throw std::invalid_argument("--method: unknown method \"" + m + "\"");
       } else if (arg == "--hypotheses") {
-        hypotheses = static_cast<long long>(parseCount(arg, value()));
+        hypotheses = static_cast<long long>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--max-frames") {
-        max_frames = parseCount(arg, value());
+        max_frames = args.intValue(0, std::numeric_limits<long long>::max());
       } else if (arg == "--relative") {
-        relative = parseNumber(arg, value());
+        relative = args.doubleValue(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
         if (!(relative >= 0.0)) throw std::invalid_argument("--relative must be >= 0");
       } else if (arg == "--require-gpu") {
         require_gpu = true;
       } else if (arg == "--csv") {
-        csv_path = value();
+        csv_path = args.value();
       } else if (!arg.empty() && arg[0] == '-') {
         throw std::invalid_argument("unknown option " + arg);
       } else {
@@ -133,16 +120,16 @@ int main(int argc, char** argv) {
     if (frames.size() > max_frames) frames.resize(max_frames);
     for (const std::string& method : methods) {
       EstimatorSettings settings;
-      settings.method = method;
+      parseMethod(method, &settings.method);
       if (hypotheses > 0) settings.hypotheses = static_cast<int>(hypotheses);
       std::printf("%s, method %s, %zu frames:\n", path.c_str(), method.c_str(), frames.size());
       EstimatorRun cpu_run, gpu_run;
       try {
-        settings.backend = "cpu";
+        settings.backend = BackendChoice::kCpu;
         cpu_run = runEstimator(createRotationEstimator(settings).get(), frames);
         printRun(cpu_run);
         if (gpu) {
-          settings.backend = "cuda";
+          settings.backend = BackendChoice::kCuda;
           std::string warning;
           auto estimator = createRotationEstimator(settings, [&](const std::string& w) { warning = w; });
           if (estimator->backendName() != "cuda") throw std::runtime_error("CUDA backend fell back: " + warning);

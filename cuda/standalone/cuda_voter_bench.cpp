@@ -8,10 +8,12 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <string>
 #include <vector>
 
-#include "standalone/bearing_file.h"
+#include "bearing_file.h"
+#include "command_line.h"
 #include "standalone/check_common.h"
 
 using namespace visual_gyro;
@@ -97,29 +99,27 @@ int main(int argc, char** argv) {
   int runs = 20, warmup = 3, device = 0;
   bool quick = false, want_yaw = true, want_rotation = true, want_cpu = true, want_cuda = true;
   try {
-    ArgCursor args(argc, argv);
-    std::string arg;
-    while (args.next(&arg)) {
-      auto value = [&args] { return args.value(); };
+    for (cli::Arguments args(argc, argv); args.next();) {
+      const std::string arg = args.current();
       if (arg == "-h" || arg == "--help") {
         usage();
         return 0;
       } else if (arg == "--file") {
-        file = value();
+        file = args.value();
       } else if (arg == "--frame") {
-        frame_index = static_cast<long long>(parseCount(arg, value()));
+        frame_index = static_cast<long long>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--csv") {
-        csv_path = value();
+        csv_path = args.value();
       } else if (arg == "--runs") {
-        runs = static_cast<int>(parseCount(arg, value()));
+        runs = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--warmup") {
-        warmup = static_cast<int>(parseCount(arg, value()));
+        warmup = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--device") {
-        device = static_cast<int>(parseCount(arg, value()));
+        device = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--quick") {
         quick = true;
       } else if (arg == "--grids" || arg == "--backends") {
-        const std::string list = value();
+        const std::string list = args.value();
         const bool first = list.find(arg == "--grids" ? "yaw" : "cpu") != std::string::npos;
         const bool second = list.find(arg == "--grids" ? "rotation" : "cuda") != std::string::npos;
         if (!first && !second) throw std::invalid_argument("nothing selected by " + arg + " " + list);

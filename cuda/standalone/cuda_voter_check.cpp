@@ -12,10 +12,12 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <limits>
 #include <string>
 #include <vector>
 
-#include "standalone/bearing_file.h"
+#include "bearing_file.h"
+#include "command_line.h"
 #include "standalone/check_common.h"
 #include "standalone/voter_compare.h"
 
@@ -64,35 +66,33 @@ int main(int argc, char** argv) {
   CompareOptions compare;
   std::string csv_path, write_path;
   try {
-    ArgCursor args(argc, argv);
-    std::string arg;
-    while (args.next(&arg)) {
-      auto value = [&args] { return args.value(); };
+    for (cli::Arguments args(argc, argv); args.next();) {
+      const std::string arg = args.current();
       if (arg == "-h" || arg == "--help") {
         usage();
         return 0;
       } else if (arg == "--synthetic") {
-        synthetic = static_cast<long long>(parseCount(arg, value()));
+        synthetic = static_cast<long long>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--matches") {
-        matches = static_cast<uint32_t>(parseCount(arg, value()));
+        matches = static_cast<uint32_t>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--hypotheses") {
-        hypotheses = static_cast<uint32_t>(parseCount(arg, value()));
+        hypotheses = static_cast<uint32_t>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--seed") {
-        seed = parseCount(arg, value());
+        seed = args.intValue(0, std::numeric_limits<long long>::max());
       } else if (arg == "--max-frames") {
-        max_frames = parseCount(arg, value());
+        max_frames = args.intValue(0, std::numeric_limits<long long>::max());
       } else if (arg == "--device") {
-        device = static_cast<int>(parseCount(arg, value()));
+        device = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
       } else if (arg == "--require-gpu") {
         require_gpu = true;
       } else if (arg == "--edge-margin") {
-        compare.edge_margin = parseNumber(arg, value());
+        compare.edge_margin = args.doubleValue(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
       } else if (arg == "--max-mismatch-fraction") {
-        compare.max_mismatch_fraction = parseNumber(arg, value());
+        compare.max_mismatch_fraction = args.doubleValue(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
       } else if (arg == "--csv") {
-        csv_path = value();
+        csv_path = args.value();
       } else if (arg == "--write-synthetic") {
-        write_path = value();
+        write_path = args.value();
       } else if (!arg.empty() && arg[0] == '-') {
         throw std::invalid_argument("unknown option " + arg);
       } else {

@@ -1,8 +1,8 @@
 // The whole estimator (voter plus host refinement) run over the frames of a bearing file on one
 // backend, its figures against the file's truth, and the rule that judges a CUDA run against the
 // CPU run: the CUDA backend must give the CPU backend's figures within 5 %. Header-only;
-// needs Eigen and the core's rotation_estimator.cpp / rotation_refinement.cpp (used by the
-// stand-alone tool cuda_estimator_check and by test/test_cuda_voter.cpp).
+// needs Eigen, the estimator and the metrics module (used by the stand-alone tool
+// cuda_estimator_check and by test/test_bearing_tools.cpp).
 //
 // Conventions as in rotation_estimator.h: b_prev ~ R b_cur, R = Ry(yaw) Rx(pitch) Rz(roll);
 // errors are per frame pair, in degrees.
@@ -18,7 +18,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "standalone/bearing_frames.h"
+#include "bearing_frames.h"
+#include "metrics.h"
 #include "visual_gyro/rotation_estimator.h"
 
 namespace visual_gyro {
@@ -51,12 +52,12 @@ inline Eigen::Matrix3d truthOf(const BearingFrame& frame) {
 }
 
 /// Runs `estimator` over `frames` in order, with the previous valid rotation as the prior (as the
-/// pipeline and evaluate do).
+/// pipeline and evaluate do), scored by the metrics module (invalid = identity, as evaluate does).
 inline EstimatorRun runEstimator(RotationEstimator* estimator, const std::vector<BearingFrame>& frames) {
   EstimatorRun run;
   run.backend = estimator->backendName();
   PriorTracker prior;
-  double rot_sq = 0.0, yaw_sq = 0.0, rot_max = 0.0, rate_sum = 0.0;
+  metrics::AccuracyAccumulator accuracy;
   std::vector<Eigen::Vector3d> prev, cur;
   for (const BearingFrame& frame : frames) {
     const double dt = frame.dt > 0.0 ? frame.dt : kDefaultFrameInterval;
@@ -68,33 +69,30 @@ inline EstimatorRun runEstimator(RotationEstimator* estimator, const std::vector
     }
     const RotationResult r = estimator->estimate(prev, cur, prior.priorFor(dt));
     prior.update(r, dt);
-    const Eigen::Matrix3d R = r.valid() ? r.rotation : Eigen::Matrix3d::Identity();
-    run.rotations.push_back(R);
+    metrics::FrameEstimate scored;
+    scored.valid = r.valid();
+    scored.rotation = r.rotation;
+    scored.dt = dt;
+    metrics::FrameTruth truth;
+    truth.has_rotation = frame.has_truth;
+    if (frame.has_truth) truth.rotation = truthOf(frame);
+    const metrics::FrameErrors errors = metrics::scoreFrame(scored, truth);
+    accuracy.add(r.valid(), errors, truth);
+    run.rotations.push_back(errors.scored_rotation);
     run.valid.push_back(r.valid() ? 1 : 0);
-    run.invalid += r.valid() ? 0 : 1;
     run.estimate_ms.push_back(r.times.estimate);
     run.vote_ms.push_back(r.times.vote);
     run.vote_device_ms.push_back(r.times.vote_device);
     run.refine_ms.push_back(r.times.refine);
-    rate_sum += Eigen::AngleAxisd(R).angle() / dt;
-    if (frame.has_truth) {
-      const Eigen::Matrix3d truth = truthOf(frame);
-      const double rot_err = rotationAngleBetween(R, truth) * 180.0 / M_PI;
-      double yaw_err = (yawPitchRollFromRotation(R)[0] - yawPitchRollFromRotation(truth)[0]) * kRadToDeg;
-      yaw_err = std::remainder(yaw_err, 360.0);
-      rot_sq += rot_err * rot_err;
-      yaw_sq += yaw_err * yaw_err;
-      rot_max = std::max(rot_max, rot_err);
-      ++run.with_truth;
-    }
-    ++run.frames;
   }
-  if (run.frames > 0) run.mean_rate_dps = rate_sum / run.frames * 180.0 / M_PI;
-  if (run.with_truth > 0) {
-    run.rot_rmse_deg = std::sqrt(rot_sq / run.with_truth);
-    run.yaw_rmse_deg = std::sqrt(yaw_sq / run.with_truth);
-    run.rot_max_deg = rot_max;
-  }
+  const metrics::AccuracySummary summary = accuracy.summary();
+  run.frames = summary.frames;
+  run.invalid = summary.invalid;
+  run.with_truth = summary.with_truth;
+  run.rot_rmse_deg = summary.rot_rmse_deg;
+  run.rot_max_deg = summary.rot_max_deg;
+  run.yaw_rmse_deg = summary.yaw_rmse_deg;
+  if (summary.frames > 0) run.mean_rate_dps = summary.mean_rate_dps;
   return run;
 }
 
@@ -128,7 +126,7 @@ inline EstimatorComparison compareEstimatorRuns(const EstimatorRun& reference, c
   for (int f = 0; f < reference.frames; ++f) {
     c.max_rotation_difference_deg = std::max(
         c.max_rotation_difference_deg,
-        rotationAngleBetween(reference.rotations[f], other.rotations[f]) * 180.0 / M_PI);
+        rotationAngleBetween(reference.rotations[f], other.rotations[f]) * kRadToDeg);
     c.validity_differs += reference.valid[f] != other.valid[f];
   }
   if (reference.invalid != other.invalid)

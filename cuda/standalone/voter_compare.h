@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 
 namespace visual_gyro {
 namespace bearings {

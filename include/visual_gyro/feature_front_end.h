@@ -11,13 +11,20 @@
 #include <opencv2/core.hpp>
 
 #include "visual_gyro/camera_model.h"
+#include "visual_gyro/setting_field.h"
 
 namespace visual_gyro {
 
 /// A 256-bit BRIEF descriptor.
 using BriefDescriptor = std::array<uint64_t, 4>;
 
-/// Settings of the front end.
+/// How consecutive frames are matched.
+enum class MatchingMode {
+  kGuided,  ///< around where the rotation prior predicts each corner (global without a prior)
+  kGlobal,  ///< every descriptor against every other
+};
+
+/// Settings of the front end. Ranges, units and docs: frontEndSettingFields().
 struct FrontEndSettings {
   int fast_threshold = 20;      ///< FAST intensity threshold (grey levels)
   /// Adaptive detection: when the corners at fast_threshold cannot fill max_features, every grid
@@ -31,10 +38,10 @@ struct FrontEndSettings {
   double max_ratio = 0.8;        ///< ratio test: best / second-best distance must be below
   int max_hamming = 64;          ///< matches with a larger Hamming distance are dropped
   bool cross_check = true;       ///< keep only mutual best matches
-  /// "guided": compare each previous descriptor only with current ones near where the rotation
+  /// kGuided: compare each previous descriptor only with current ones near where the rotation
   /// prior predicts it (global matching when there is no prior or guided finds too few);
-  /// "global": every descriptor against every other.
-  std::string matching = "guided";
+  /// kGlobal: every descriptor against every other.
+  MatchingMode matching = MatchingMode::kGuided;
   /// Guided search radius around the predicted position [px] before the parallax and
   /// prior-uncertainty terms.
   double guided_radius_px = 20.0;
@@ -45,7 +52,10 @@ struct FrontEndSettings {
   int guided_min_matches = 30;
 };
 
-/// "" when usable, else what is wrong.
+/// Every front-end setting with its range, unit and doc (see setting_field.h).
+const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields();
+
+/// "" when every setting is in its range, else what is wrong.
 std::string validateFrontEndSettings(const FrontEndSettings& settings);
 
 /// BRIEF sampling pattern: 256 point pairs in a 31x31 patch centred on the corner (offsets in

@@ -9,14 +9,29 @@
 
 namespace visual_gyro {
 
+/// The scene and motion of a rendered sequence.
+enum class RenderPreset {
+  kDrive,     ///< car-like forward motion with left and right turns (10 Hz)
+  kHandheld,  ///< rotation only with small jitter, in a textured room (30 Hz)
+  kForward,   ///< straight forward drive, no rotation to speak of (10 Hz)
+  /// The handheld motion in a dim room of large plain walls, a few doors and boxes, all within 30
+  /// grey levels (30 Hz).
+  kDim,
+  /// A hand-shaken camera 1-2 m from textured structure: up to ~3 deg and 2-5 cm per frame at
+  /// 20 Hz, strong parallax.
+  kDroneNear,
+};
+
+/// "drive", "handheld", "forward", "dim" or "drone_near".
+const char* presetName(RenderPreset preset);
+/// Reads a preset name; false (and *preset untouched) for an unknown one.
+bool parsePreset(const std::string& name, RenderPreset* preset);
+/// The frame rate a preset is meant for [Hz] (10, 30 or 20).
+double presetRateHz(RenderPreset preset);
+
 /// What to render.
 struct RenderSettings {
-  /// "drive" (car-like forward motion with left and right turns), "handheld" (rotation only with
-  /// small jitter), "forward" (straight forward drive, no rotation to speak of), "dim" (the
-  /// handheld motion in a dim room of large plain walls, a few doors and boxes, all within 30 grey
-  /// levels), "drone_near" (a hand-shaken camera 1-2 m from textured structure: up to ~3 deg and
-  /// 2-5 cm per frame at 20 Hz, strong parallax; render it at rate_hz = 20).
-  std::string preset = "drive";
+  RenderPreset preset = RenderPreset::kDrive;
   int frames = 60;
   int width = 640;
   int height = 480;

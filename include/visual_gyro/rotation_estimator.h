@@ -1,6 +1,6 @@
 // Frame-to-frame rotation from matched bearing vectors.
 //
-// Convention (see hypothesis_math.h): R maps bearings of the current frame k into the previous
+// Convention (the same in the voters, src/voter/hypothesis_math.h): R maps bearings of the current frame k into the previous
 // frame k-1, b_prev ~ R b_cur; R = R_{k-1}^T R_k for camera poses R_k. Its rotation vector divided
 // by the frame interval is the camera's angular velocity in the camera frame (what a gyro fixed to
 // the camera measures). Angles in radians unless a name says _deg; times in milliseconds.
@@ -15,19 +15,42 @@
 
 #include "visual_gyro/frame_status.h"
 #include "visual_gyro/geometry.h"
-#include "visual_gyro/hypothesis_voter.h"
+#include "visual_gyro/setting_field.h"
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace visual_gyro {
 
-/// Settings of the rotation estimator. Degrees in the settings, radians in the results.
+class HypothesisVoter;
+struct VoteRequest;
+struct VoteResult;
+
+/// How the rotation is estimated.
+enum class EstimationMethod {
+  kVote,   ///< 3-D rotation voting, translation-aware verification and refinement
+  kPaper,  ///< the paper's yaw-histogram voting, reproduced faithfully
+};
+/// Which hypothesis voter runs.
+enum class BackendChoice {
+  kAuto,  ///< CUDA when the build has it and a device works, else the CPU
+  kCpu,
+  kCuda,  ///< CUDA, or the CPU with one warning when unavailable
+};
+/// "vote" or "paper".
+const char* methodName(EstimationMethod method);
+/// "auto", "cpu" or "cuda".
+const char* backendChoiceName(BackendChoice backend);
+/// Reads a method name; false (and *method untouched) for an unknown one.
+bool parseMethod(const std::string& name, EstimationMethod* method);
+/// Reads a backend name; false (and *backend untouched) for an unknown one.
+bool parseBackendChoice(const std::string& name, BackendChoice* backend);
+
+/// Settings of the rotation estimator. Degrees in the settings, radians in the results. Ranges,
+/// units and docs: estimatorSettingFields().
 struct EstimatorSettings {
-  /// "vote" (default: 3-D voting, verification, refinement) or "paper" (faithful yaw voting).
-  std::string method = "vote";
-  /// "auto" (CUDA when a device works, else CPU), "cpu" or "cuda".
-  std::string backend = "auto";
+  EstimationMethod method = EstimationMethod::kVote;
+  BackendChoice backend = BackendChoice::kAuto;
   int hypotheses = 2000;  ///< triples drawn per frame
   uint64_t seed = 1;      ///< Philox seed; frame f uses seed + f, so runs are reproducible
 
@@ -41,7 +64,9 @@ struct EstimatorSettings {
   double yaw_window_deg = 15.0;      ///< yaw histogram covers [-window, +window)
 
   // --- vote method ---
-  double rotation_bin_deg = 0.5;      ///< cell width of the 3-D rotation-vector histogram
+  /// Cell width of the 3-D rotation-vector histogram (widened to rotation_window_deg / 64 when
+  /// finer: at most 128 cells per axis).
+  double rotation_bin_deg = 0.5;
   double rotation_window_deg = 6.0;   ///< half width of the histogram around the prior
   double wide_window_deg = 30.0;      ///< half width of the fallback histogram (prior failed)
   double max_angle_change_deg = 0.5;  ///< triples whose pairwise angles change more are voted out
@@ -61,7 +86,12 @@ struct EstimatorSettings {
 /// residual shows (calibration, time stamps, the ground truth it was calibrated against), 0.035 deg.
 constexpr double kRotationCovarianceFloor = 0.035 * M_PI / 180.0;
 
-/// Checks settings; returns "" when usable, else a message naming the bad setting.
+/// Every estimator setting with its range, unit and doc (see setting_field.h).
+const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields();
+
+/// Checks settings: every field in its range (estimatorSettingFields); there are no rules across
+/// fields, so exactly the ranges are accepted. Returns "" when usable, else a message naming the
+/// bad setting.
 std::string validateSettings(const EstimatorSettings& settings);
 
 /// Wall-clock time of one rotation estimate and its parts [ms].
@@ -193,7 +223,7 @@ class RotationEstimator {
   std::unique_ptr<HypothesisVoter> voter_;
   double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
   double vote_device_ms_ = 0.0;  // this frame's kernel time so far
-  VoteResult votes_;  // reused: no per-frame allocation once the histogram has its size
+  std::unique_ptr<VoteResult> votes_;  // reused: no per-frame allocation once the histogram has its size
   uint64_t frame_count_ = 0;
 };
 

@@ -54,7 +54,7 @@ struct FrameResult {
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
 };
 
-/// Settings of the whole pipeline.
+/// Settings of the whole pipeline. Ranges, units and docs: visualGyroSettingFields().
 struct VisualGyroSettings {
   FrontEndSettings front_end;
   EstimatorSettings estimator;
@@ -69,9 +69,21 @@ struct VisualGyroSettings {
   double max_rate_dps = 2000.0;
 };
 
-/// "" when the pipeline settings of their own (min_dt, max_rate_dps) are usable, else why not.
-/// The front-end and estimator settings are checked by validateFrontEndSettings and validateSettings.
-std::string validatePlausibilitySettings(const VisualGyroSettings& settings);
+/// Every setting of the pipeline (front end, estimator and its own), each defined once with its
+/// range, unit and doc. The names are unique across the three.
+const std::vector<SettingField<VisualGyroSettings>>& visualGyroSettingFields();
+
+/// The setting called `name`, or nullptr.
+const SettingField<VisualGyroSettings>* findSetting(const std::string& name);
+
+/// Sets one setting from text (as `evaluate --set name=value` and the nodelet's parameters do):
+/// "" when `value` parses and is in range, else why not (and *settings is unchanged). Whole-set
+/// rules (validateVisualGyroSettings) are checked by the caller once all settings are applied.
+std::string applySetting(VisualGyroSettings* settings, const std::string& name, const std::string& value);
+
+/// "" when the settings are usable: every setting in its range and the estimator's combined rules
+/// (validateSettings) hold; else a message naming the setting.
+std::string validateVisualGyroSettings(const VisualGyroSettings& settings);
 
 /// "" when a rotation vector [rad] over dt [s] is a plausible rate for `settings`, else why not
 /// (the rate above max_rate_dps, or dt not positive). Applied to every estimate before it is

@@ -285,36 +285,34 @@ KernelFn selectKernel() {
 
 }  // namespace
 
-std::string validateFrontEndSettings(const FrontEndSettings& s) {
-  std::ostringstream why;
-  if (s.fast_threshold < 1 || s.fast_threshold > 254) {
-    why << "fast_threshold must be in [1, 254] grey levels, got " << s.fast_threshold;
-  } else if (s.max_features < 1) {
-    why << "max_features must be positive, got " << s.max_features;
-  } else if (s.grid_cols < 1 || s.grid_rows < 1) {
-    why << "grid_cols and grid_rows must be positive, got " << s.grid_cols << " x " << s.grid_rows;
-  } else if (!std::isfinite(s.smoothing_sigma) || s.smoothing_sigma < 0.0 ||
-             s.smoothing_sigma > 20.0) {
-    why << "smoothing_sigma must be in [0, 20] px (0 = no smoothing), got " << s.smoothing_sigma;
-  } else if (!std::isfinite(s.max_ratio) || s.max_ratio <= 0.0 || s.max_ratio > 1.0) {
-    why << "max_ratio must be in (0, 1], got " << s.max_ratio;
-  } else if (s.max_hamming < 0 || s.max_hamming > 256) {
-    why << "max_hamming must be in [0, 256] bits, got " << s.max_hamming;
-  } else if (s.min_fast_threshold < 1 || s.min_fast_threshold > 254) {
-    why << "min_fast_threshold must be in [1, 254] grey levels, got " << s.min_fast_threshold;
-  } else if (s.matching != "guided" && s.matching != "global") {
-    why << "matching must be 'guided' or 'global', got '" << s.matching << "'";
-  } else if (!std::isfinite(s.guided_radius_px) || s.guided_radius_px < 1.0 ||
-             s.guided_radius_px > 10000.0) {
-    why << "guided_radius_px must be in [1, 10000] px, got " << s.guided_radius_px;
-  } else if (!std::isfinite(s.guided_radius_growth) || s.guided_radius_growth < 0.0 ||
-             s.guided_radius_growth > 10.0) {
-    why << "guided_radius_growth must be in [0, 10] px/px, got " << s.guided_radius_growth;
-  } else if (s.guided_min_matches < 0) {
-    why << "guided_min_matches must not be negative, got " << s.guided_min_matches;
-  }
-  return why.str();
+const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
+  using S = FrontEndSettings;
+  static const std::vector<SettingField<S>> fields = {
+      intField<S>("fast_threshold", &S::fast_threshold, 1, 254, "grey levels", "FAST intensity threshold"),
+      intField<S>("max_features", &S::max_features, 1, 20000, "", "corners per frame at most"),
+      intField<S>("grid_cols", &S::grid_cols, 1, 64, "", "bucketing grid columns"),
+      intField<S>("grid_rows", &S::grid_rows, 1, 64, "", "bucketing grid rows"),
+      doubleField<S>("smoothing_sigma", &S::smoothing_sigma, 0.0, 20.0, "px",
+                     "Gaussian smoothing before BRIEF (0: none)"),
+      doubleField<S>("max_ratio", &S::max_ratio, 0.01, 1.0, "", "ratio test: best / second-best distance below this"),
+      intField<S>("max_hamming", &S::max_hamming, 0, 256, "bits", "largest Hamming distance of a match"),
+      boolField<S>("cross_check", &S::cross_check, "keep only mutual best matches"),
+      intField<S>("min_fast_threshold", &S::min_fast_threshold, 1, 254, "grey levels",
+                  "FAST threshold floor for grid cells short of corners"),
+      enumField<S, MatchingMode>("matching", &S::matching,
+                                 {{"guided", MatchingMode::kGuided}, {"global", MatchingMode::kGlobal}},
+                                 "guided by the rotation prior, or global"),
+      doubleField<S>("guided_radius_px", &S::guided_radius_px, 1.0, 10000.0, "px",
+                     "guided search radius before the parallax and prior-uncertainty terms"),
+      doubleField<S>("guided_radius_growth", &S::guided_radius_growth, 0.0, 10.0, "px/px",
+                     "guided radius growth per px of distance from the principal point"),
+      intField<S>("guided_min_matches", &S::guided_min_matches, 0, 100000, "",
+                  "fewer guided matches fall back to global matching"),
+  };
+  return fields;
 }
+
+std::string validateFrontEndSettings(const FrontEndSettings& s) { return checkRanges(s, frontEndSettingFields()); }
 
 const std::vector<std::array<int8_t, 4>>& briefPattern() {
   // Pair i = {x1, y1, x2, y2} (offsets from the keypoint in px); descriptor bit i is set when the

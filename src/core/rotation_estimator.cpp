@@ -10,11 +10,11 @@
 
 #include <Eigen/Dense>
 
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 #include "rotation_refinement.h"
 
 #ifdef VISUAL_GYRO_WITH_CUDA
-#include "../../cuda/cuda_voter.h"
+#include "cuda_voter.h"
 #endif
 
 namespace visual_gyro {
@@ -107,6 +107,10 @@ hyp::TripleOptions tripleOptions(const EstimatorSettings& s, bool centroid, doub
   return opt;
 }
 
+// Cells per axis of the vote method's narrow histogram at most (128^3 cells); a finer
+// rotation_bin_deg is widened to fit its window.
+constexpr int kMaxRotationBins = 128;
+
 int binsFor(double window_deg, double bin_deg) {
   const double bins = std::ceil(2.0 * window_deg / bin_deg - 1e-9);
   // Saturate before converting: a double beyond int's range (a tiny bin) would be undefined
@@ -129,37 +133,81 @@ void RotationResult::invalidate(FrameStatus why, const std::string& details) {
   covariance.setIdentity();
 }
 
-std::string validateSettings(const EstimatorSettings& s) {
-  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  if (s.method != "vote" && s.method != "paper")
-    return "method must be \"vote\" or \"paper\", got \"" + s.method + "\"";
-  if (s.backend != "auto" && s.backend != "cpu" && s.backend != "cuda")
-    return "backend must be \"auto\", \"cpu\" or \"cuda\", got \"" + s.backend + "\"";
-  if (s.hypotheses < 1 || s.hypotheses > 10000000) return "hypotheses must be in 1..10000000";
-  if (!(s.min_separation_deg >= 0.0)) return "min_separation_deg must be >= 0";
-  if (!(s.min_triangle_area_deg2 >= 0.0)) return "min_triangle_area_deg2 must be >= 0";
-  if (!positive(s.yaw_bin_deg)) return "yaw_bin_deg must be > 0";
-  if (!positive(s.yaw_window_deg) || s.yaw_window_deg >= 180.0)
-    return "yaw_window_deg must be in (0, 180)";
-  if (binsFor(s.yaw_window_deg, s.yaw_bin_deg) > (1 << 22)) return "yaw histogram too fine";
-  if (!positive(s.rotation_bin_deg)) return "rotation_bin_deg must be > 0";
-  if (!positive(s.rotation_window_deg) || s.rotation_window_deg >= 90.0)
-    return "rotation_window_deg must be in (0, 90)";
-  if (!positive(s.wide_window_deg) || s.wide_window_deg >= 90.0)
-    return "wide_window_deg must be in (0, 90)";
-  if (binsFor(s.rotation_window_deg, s.rotation_bin_deg) > 128)
-    return "rotation histogram too fine: more than 128 bins per axis (widen rotation_bin_deg)";
-  if (!(s.max_angle_change_deg >= 0.0)) return "max_angle_change_deg must be >= 0";
-  if (s.candidates < 1) return "candidates must be >= 1";
-  if (!positive(s.inlier_threshold_deg)) return "inlier_threshold_deg must be > 0";
-  if (s.refine_iterations < 0) return "refine_iterations must be >= 0";
-  if (s.min_matches < 3) return "min_matches must be >= 3";
-  if (s.min_votes < 1) return "min_votes must be >= 1";
-  if (!(s.min_inlier_ratio >= 0.0 && s.min_inlier_ratio <= 1.0))
-    return "min_inlier_ratio must be in [0, 1]";
-  if (!(s.min_covariance_rad2 > 0.0)) return "min_covariance_rad2 must be > 0";
-  return "";
+const char* methodName(EstimationMethod method) {
+  return method == EstimationMethod::kPaper ? "paper" : "vote";
 }
+
+const char* backendChoiceName(BackendChoice backend) {
+  switch (backend) {
+    case BackendChoice::kCpu: return "cpu";
+    case BackendChoice::kCuda: return "cuda";
+    case BackendChoice::kAuto: break;
+  }
+  return "auto";
+}
+
+bool parseMethod(const std::string& name, EstimationMethod* method) {
+  for (const EstimationMethod m : {EstimationMethod::kVote, EstimationMethod::kPaper}) {
+    if (name == methodName(m)) {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool parseBackendChoice(const std::string& name, BackendChoice* backend) {
+  for (const BackendChoice b : {BackendChoice::kAuto, BackendChoice::kCpu, BackendChoice::kCuda}) {
+    if (name == backendChoiceName(b)) {
+      *backend = b;
+      return true;
+    }
+  }
+  return false;
+}
+
+const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields() {
+  using S = EstimatorSettings;
+  static const std::vector<SettingField<S>> fields = {
+      enumField<S, EstimationMethod>("method", &S::method,
+                                     {{"vote", EstimationMethod::kVote}, {"paper", EstimationMethod::kPaper}},
+                                     "vote: 3-D rotation voting, verification and refinement; paper: faithful yaw voting"),
+      enumField<S, BackendChoice>("backend", &S::backend,
+                                  {{"auto", BackendChoice::kAuto}, {"cpu", BackendChoice::kCpu}, {"cuda", BackendChoice::kCuda}},
+                                  "hypothesis voter: auto (CUDA when a device works), cpu or cuda"),
+      intField<S>("hypotheses", &S::hypotheses, 1, 10000000, "", "triples drawn per frame"),
+      intField<S>("seed", &S::seed, 0, 2147483647, "", "random seed; frame f draws with seed + f"),
+      doubleField<S>("min_separation_deg", &S::min_separation_deg, 0.0, 10.0, "deg",
+                     "a triple with two bearings closer than this is degenerate"),
+      doubleField<S>("min_triangle_area_deg2", &S::min_triangle_area_deg2, 0.0, 100.0, "deg^2",
+                     "a triple with a smaller triangle is degenerate"),
+      boolField<S>("centroid_subtraction", &S::centroid_subtraction, "paper: subtract centroids before Arun's SVD"),
+      doubleField<S>("yaw_bin_deg", &S::yaw_bin_deg, 0.001, 10.0, "deg", "paper: yaw histogram bin width"),
+      doubleField<S>("yaw_window_deg", &S::yaw_window_deg, 0.1, 179.0, "deg",
+                     "paper: the yaw histogram covers [-window, +window)"),
+      doubleField<S>("rotation_bin_deg", &S::rotation_bin_deg, 0.01, 10.0, "deg",
+                     "vote: cell width of the rotation-vector histogram"),
+      doubleField<S>("rotation_window_deg", &S::rotation_window_deg, 0.1, 89.0, "deg",
+                     "vote: half window around the prior (at most 64 cells: a finer bin is widened)"),
+      doubleField<S>("wide_window_deg", &S::wide_window_deg, 0.1, 89.0, "deg",
+                     "vote: half window of the prior-free vote"),
+      doubleField<S>("max_angle_change_deg", &S::max_angle_change_deg, 0.0, 10.0, "deg",
+                     "vote: triples whose pairwise angles change more are voted out (0 = off)"),
+      intField<S>("candidates", &S::candidates, 1, 50, "", "vote: fullest cells verified against all matches"),
+      doubleField<S>("inlier_threshold_deg", &S::inlier_threshold_deg, 0.001, 10.0, "deg", "vote: inlier residual"),
+      boolField<S>("use_prior", &S::use_prior, "vote: centre the window on the previous rotation"),
+      intField<S>("refine_iterations", &S::refine_iterations, 0, 100, "", "vote: Gauss-Newton refinement iterations"),
+      intField<S>("min_matches", &S::min_matches, 3, 10000, "", "fewer matches give an invalid estimate"),
+      intField<S>("min_votes", &S::min_votes, 1, 100000, "", "a winning cell with fewer votes gives an invalid estimate"),
+      doubleField<S>("min_inlier_ratio", &S::min_inlier_ratio, 0.0, 1.0, "",
+                     "vote: a smaller fraction of inliers gives an invalid estimate"),
+      doubleField<S>("min_covariance_rad2", &S::min_covariance_rad2, 1e-12, 1.0, "rad^2",
+                     "floor of each rotation covariance diagonal entry (the Imu floor is this / dt^2)"),
+  };
+  return fields;
+}
+
+std::string validateSettings(const EstimatorSettings& s) { return checkRanges(s, estimatorSettingFields()); }
 
 // ---------------------------------------------------------------------------------------------
 
@@ -179,7 +227,7 @@ void PriorTracker::update(const RotationResult& result, double dt) {
 
 RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
                                      std::unique_ptr<HypothesisVoter> voter)
-    : settings_(settings), voter_(std::move(voter)) {
+    : settings_(settings), voter_(std::move(voter)), votes_(std::make_unique<VoteResult>()) {
   const std::string problem = validateSettings(settings_);
   if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
   if (!voter_) throw std::invalid_argument("RotationEstimator needs a voter");
@@ -208,7 +256,7 @@ RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& p
     result.matches_used = static_cast<int>(std::min(previous.size(), current.size()));
   } else {
     try {
-      result = settings_.method == "paper" ? estimatePaper(previous, current)
+      result = settings_.method == EstimationMethod::kPaper ? estimatePaper(previous, current)
                                            : estimateVote(previous, current, prior);
     } catch (const std::exception& e) {
       // A backend failure mid-stream (e.g. a lost GPU) must not take the caller down.
@@ -248,7 +296,7 @@ RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3
   request.grid.centre[0] = request.grid.centre[1] = request.grid.centre[2] = 0.f;
   request.grid.bin_width = static_cast<float>(settings_.yaw_bin_deg * kDeg);
   request.grid.bins = binsFor(settings_.yaw_window_deg, settings_.yaw_bin_deg);
-  VoteResult& votes = votes_;
+  VoteResult& votes = *votes_;
   castVotes(request, &votes);
 
   RotationResult result;
@@ -418,14 +466,15 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     const bool narrow = pass == 0;
     const Eigen::Vector3d centre = narrow && prior_usable ? prior.rotation_vector : Eigen::Vector3d::Zero();
     const double window = narrow ? settings_.rotation_window_deg : settings_.wide_window_deg;
-    const double bin = narrow ? settings_.rotation_bin_deg
-                              : std::max(settings_.rotation_bin_deg, 2.0 * window / 40.0);
+    // The histogram never exceeds kMaxRotationBins cells per axis (memory grows with their cube):
+    // a bin too fine for its window is widened, so every setting in range is usable.
+    const double bin = std::max(settings_.rotation_bin_deg, 2.0 * window / (narrow ? kMaxRotationBins : 40.0));
     for (int k = 0; k < 3; ++k) request.grid.centre[k] = static_cast<float>(centre[k]);
     request.grid.bin_width = static_cast<float>(bin * kDeg);
     request.grid.bins = binsFor(window, bin);
     request.triple = tripleOptions(settings_, false, narrow ? settings_.max_angle_change_deg : 0.0);
     request.seed = seed + (narrow ? 0 : 0x9E3779B97F4A7C15ull);
-    VoteResult& votes = votes_;
+    VoteResult& votes = *votes_;
     castVotes(request, &votes);
     result.hypotheses_drawn += settings_.hypotheses;
     result.hypotheses_accepted += static_cast<int>(votes.accepted);
@@ -582,7 +631,7 @@ std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettin
   const std::string problem = validateSettings(settings);
   if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
   std::unique_ptr<HypothesisVoter> voter;
-  if (settings.backend == "cuda" || settings.backend == "auto") {
+  if (settings.backend != BackendChoice::kCpu) {
 #ifdef VISUAL_GYRO_WITH_CUDA
     try {
       voter = createCudaVoter();
@@ -590,7 +639,7 @@ std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettin
       if (warn) warn(std::string("CUDA backend unavailable (") + e.what() + "); using the CPU backend");
     }
 #else
-    if (settings.backend == "cuda" && warn)
+    if (settings.backend == BackendChoice::kCuda && warn)
       warn("CUDA backend requested but this build has no CUDA support; using the CPU backend");
 #endif
   }

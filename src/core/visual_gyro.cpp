@@ -16,11 +16,7 @@ double elapsedMs(std::chrono::steady_clock::time_point start) {
 }
 
 void checkSettings(const VisualGyroSettings& settings) {
-  std::string problem = validateFrontEndSettings(settings.front_end);
-  if (!problem.empty()) throw std::invalid_argument("invalid front-end settings: " + problem);
-  problem = validateSettings(settings.estimator);
-  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
-  problem = validatePlausibilitySettings(settings);
+  const std::string problem = validateVisualGyroSettings(settings);
   if (!problem.empty()) throw std::invalid_argument("invalid settings: " + problem);
 }
 
@@ -49,10 +45,49 @@ std::string formatNumber(double v) {
 
 }  // namespace
 
-std::string validatePlausibilitySettings(const VisualGyroSettings& s) {
-  if (!(std::isfinite(s.min_dt) && s.min_dt >= 0.0)) return "min_dt must be >= 0 [s]";
-  if (!(std::isfinite(s.max_rate_dps) && s.max_rate_dps > 0.0)) return "max_rate_dps must be > 0 [deg/s]";
+const std::vector<SettingField<VisualGyroSettings>>& visualGyroSettingFields() {
+  using S = VisualGyroSettings;
+  static const std::vector<SettingField<S>> fields = [] {
+    std::vector<SettingField<S>> all;
+    for (const auto& f : frontEndSettingFields()) all.push_back(nestedField(f, &S::front_end));
+    for (const auto& f : estimatorSettingFields()) all.push_back(nestedField(f, &S::estimator));
+    all.push_back(doubleField<S>("min_dt", &S::min_dt, 0.0, 1.0, "s",
+                                 "a time step below this is skipped (the frame is not used)"));
+    all.push_back(doubleField<S>("max_rate_dps", &S::max_rate_dps, 1.0, 1e6, "deg/s",
+                                 "an estimated angular rate above this is invalid"));
+    return all;
+  }();
+  return fields;
+}
+
+const SettingField<VisualGyroSettings>* findSetting(const std::string& name) {
+  for (const auto& f : visualGyroSettingFields())
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+std::string applySetting(VisualGyroSettings* settings, const std::string& name, const std::string& value) {
+  const SettingField<VisualGyroSettings>* field = findSetting(name);
+  if (field == nullptr) return "unknown setting '" + name + "'";
+  VisualGyroSettings changed = *settings;
+  std::string why = field->parse(&changed, value);
+  if (!why.empty()) return name + ": " + why;
+  why = field->checkRange(changed);
+  if (!why.empty()) return why;
+  *settings = changed;
   return "";
+}
+
+std::string validateVisualGyroSettings(const VisualGyroSettings& settings) {
+  std::string problem = validateFrontEndSettings(settings.front_end);
+  if (problem.empty()) problem = validateSettings(settings.estimator);
+  if (problem.empty()) {
+    for (const auto& f : visualGyroSettingFields()) {
+      problem = f.checkRange(settings);
+      if (!problem.empty()) break;
+    }
+  }
+  return problem;
 }
 
 std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,
@@ -239,7 +274,7 @@ void VisualGyro::collectMatches(FrameResult* result) const {
 
 void VisualGyro::matchFrames(const RotationPrior& prior) {
   const FrontEndSettings& s = settings_.front_end;
-  if (s.matching != "guided" || !prior.valid) {
+  if (s.matching != MatchingMode::kGuided || !prior.valid) {
     front_end_.match(previous_features_, features_, &matches_);
     matching_ = "global";
     return;

@@ -21,11 +21,11 @@ std::vector<std::pair<std::string, std::string>> entries(const Config& config);
 /// The parameters that differ, as "name old -> new" joined with ", " ("" when none).
 std::string describeChange(const Config& before, const Config& after);
 
-/// The pipeline settings of `config`, with the node's ~backend request.
-VisualGyroSettings pipelineSettings(const Config& config, const std::string& backend);
-
-/// Why the pipeline settings are unusable ("" when they are usable).
-std::string validate(const VisualGyroSettings& settings);
+/// The pipeline settings of `config`: every entry the settings table knows (findSetting) applied by
+/// name through applySetting, with the node's ~backend request; the entries it does not know are
+/// the node's own (max_gap, stamp_at_midpoint, ...). "" or why the settings are unusable: the
+/// first entry that does not parse or is out of range, else validateVisualGyroSettings' answer.
+std::string pipelineSettings(const Config& config, const std::string& backend, VisualGyroSettings* settings);
 
 }  // namespace reconfigure_settings
 }  // namespace visual_gyro

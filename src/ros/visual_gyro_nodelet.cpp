@@ -140,11 +140,12 @@ void VisualGyroNodelet::connectCb() {
 }
 
 void VisualGyroNodelet::reconfigureCb(Config& config, uint32_t /*level*/) {
-  const std::string problem =
-      reconfigure_settings::validate(reconfigure_settings::pipelineSettings(config, params_.backend));
+  VisualGyroSettings settings;
+  const std::string problem = reconfigure_settings::pipelineSettings(config, params_.backend, &settings);
   std::lock_guard<std::mutex> lock(config_mutex_);
   if (problem.empty()) {
     config_ = config;
+    settings_ = settings;
     have_config_ = true;
     ++config_version_;
     health_.setSettingsProblem("");
@@ -231,6 +232,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
                                      ros::WallTime wall_start) {
   std::lock_guard<std::mutex> frame_lock(frame_mutex_);
   Config config;
+  VisualGyroSettings settings;
   uint64_t config_version = 0;
   {
     std::lock_guard<std::mutex> config_lock(config_mutex_);
@@ -239,6 +241,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
       return;
     }
     config = config_;
+    settings = settings_;
     config_version = config_version_;
   }
   const double stamp = image.header.stamp.toSec();
@@ -274,7 +277,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     health_.skipped(conv::isSupportedEncoding(image.encoding) ? "malformed_image" : "encoding " + image.encoding);
     return;
   }
-  if (!preparePipeline(camera, config, config_version)) return;
+  if (!preparePipeline(camera, settings, config_version)) return;
 
   const bool had_previous = have_previous_;
   const double previous_stamp = previous_stamp_;
@@ -315,13 +318,13 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   if (!outputs_->publish(frame, outputSettings(config))) health_.skipped("tf");
 }
 
-bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const Config& config, uint64_t config_version) {
+bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const VisualGyroSettings& settings,
+                                        uint64_t config_version) {
   // A camera that failed before fails again: say so without rebuilding (the checks cost time).
   if (have_failed_camera_ && sameCamera(camera, failed_camera_)) {
     skipForCamera(health_.cameraProblem(), "camera");
     return false;
   }
-  const VisualGyroSettings settings = reconfigure_settings::pipelineSettings(config, params_.backend);
   // (Re)build the pipeline when the camera changes; the backend is chosen once.
   if (!pipeline_ || !have_camera_ || !sameCamera(camera, camera_)) {
     try {
@@ -336,7 +339,7 @@ bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const Config&
         backend_used_ = pipeline_->backendName();
         health_.setBackend(backend_used_, backend_warning_);
         NODELET_INFO("visual_gyro: camera %dx%d fx %.2f fy %.2f, method '%s', backend '%s' (requested '%s')",
-                     camera.width(), camera.height(), camera.fx(), camera.fy(), settings.estimator.method.c_str(),
+                     camera.width(), camera.height(), camera.fx(), camera.fy(), methodName(settings.estimator.method),
                      backend_used_.c_str(), params_.backend.c_str());
       } else {
         pipeline_->setCamera(camera);

@@ -90,8 +90,9 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   /// Takes frame_mutex_.
   void processImage(const sensor_msgs::Image& image, const CameraModel& camera, ros::WallTime wall_start);
   /// Makes the pipeline ready for `camera` (built on the first image, re-targeted when the camera
-  /// changes) with the settings of `config`; false (frame skipped) when the camera is unusable.
-  bool preparePipeline(const CameraModel& camera, const Config& config, uint64_t config_version);
+  /// changes) with `settings` (version `config_version`); false (frame skipped) when the camera is
+  /// unusable.
+  bool preparePipeline(const CameraModel& camera, const VisualGyroSettings& settings, uint64_t config_version);
   /// Forgets the previous frame, the integrated orientation and the yaw plot; `cause` is counted.
   void resetState(const std::string& cause);
   /// Skips a frame whose camera model is unusable (`why`): a throttled error, kept for the
@@ -137,6 +138,7 @@ class VisualGyroNodelet : public nodelet::Nodelet {
 
   std::mutex config_mutex_;  ///< 3: guards the accepted live settings below
   Config config_;
+  VisualGyroSettings settings_;  ///< the pipeline settings of config_ (through the settings table)
   bool have_config_ = false;
   uint64_t config_version_ = 0;  ///< counts accepted changes
 };

@@ -22,7 +22,7 @@ bool waitFor(const std::function<bool()>& pred, double timeout) {
 
 RenderSettings handheldScene() {
   RenderSettings s;
-  s.preset = "handheld";
+  s.preset = RenderPreset::kHandheld;
   s.setCentredCamera(320, 240, 250.0);
   s.noise_sigma = 1.0;
   return s;

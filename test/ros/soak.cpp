@@ -96,7 +96,7 @@ void loadFrames(std::vector<cv::Mat>* frames, visual_gyro::CameraModel* camera, 
     return;
   }
   visual_gyro::RenderSettings s;
-  s.preset = "handheld";
+  s.preset = visual_gyro::RenderPreset::kHandheld;
   s.setCentredCamera(640, 480, 500.0);
   for (int k = 0; k < 40; ++k) {
     frames->push_back(visual_gyro::renderView(

@@ -1,4 +1,4 @@
-#include "standalone/bearing_file.h"
+#include "bearing_file.h"
 
 #include <cmath>
 #include <cstdio>

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "visual_gyro/hypothesis_voter.h"
+#include "hypothesis_voter.h"
 
 namespace visual_gyro {
 

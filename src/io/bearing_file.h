@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "standalone/bearing_frames.h"
+#include "bearing_frames.h"
 
 namespace visual_gyro {
 namespace bearings {

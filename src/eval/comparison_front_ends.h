@@ -13,7 +13,7 @@
 #include "visual_gyro/visual_gyro.h"
 
 namespace visual_gyro {
-namespace tools {
+namespace eval {
 
 /// A frame-to-frame front end: image in, matched pixels with the previous image out.
 class ComparisonFrontEnd {
@@ -36,5 +36,5 @@ const std::vector<std::string>& comparisonFrontEndNames();
 /// Throws std::invalid_argument for another name.
 std::unique_ptr<ComparisonFrontEnd> makeComparisonFrontEnd(const std::string& name);
 
-}  // namespace tools
+}  // namespace eval
 }  // namespace visual_gyro

@@ -12,7 +12,7 @@
 #include <random>
 #include <vector>
 
-#include "visual_gyro/hypothesis_math.h"
+#include "hypothesis_math.h"
 
 namespace visual_gyro {
 namespace bearings {

@@ -10,7 +10,7 @@
 #include <opencv2/video/tracking.hpp>
 
 namespace visual_gyro {
-namespace tools {
+namespace eval {
 namespace {
 
 constexpr int kFeatures = 1500;
@@ -118,5 +118,5 @@ std::unique_ptr<ComparisonFrontEnd> makeComparisonFrontEnd(const std::string& na
   throw std::invalid_argument("unknown comparison front end '" + name + "' (orb, klt)");
 }
 
-}  // namespace tools
+}  // namespace eval
 }  // namespace visual_gyro

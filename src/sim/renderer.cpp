@@ -296,8 +296,8 @@ double wave(double amplitude, double frequency_hz, double phase, double t) {
 
 class Trajectory {
  public:
-  Trajectory(const std::string& preset, double duration) : preset_(preset) {
-    if (isRoom() || preset_ == "drone_near") return;
+  Trajectory(RenderPreset preset, double duration) : preset_(preset) {
+    if (isRoom() || preset_ == RenderPreset::kDroneNear) return;
     // Drive: integrate the heading into positions once (midpoint rule, 2 ms steps), covering a
     // stretch before the first and after the last frame so the scene extends past them.
     t_min_ = -3.0;
@@ -318,7 +318,7 @@ class Trajectory {
 
   /// Heading of the car (yaw of the camera without its small oscillations) [rad].
   double heading(double t) const {
-    if (preset_ == "forward") return wave(deg(0.3), 0.25, 0.7, t);
+    if (preset_ == RenderPreset::kForward) return wave(deg(0.3), 0.25, 0.7, t);
     if (t <= 0.0) return 0.0;
     // Repeating pattern of 6.5 s: a right turn over [0.5, 3.0] s and a left turn over
     // [3.5, 6.0] s, each a raised-cosine yaw rate peaking at 30 deg/s (3 deg/frame at 10 Hz).
@@ -341,7 +341,7 @@ class Trajectory {
       *position = Eigen::Vector3d(wave(0.003, 1.3, 0.2, t), wave(0.002, 1.7, 0.9, t), wave(0.003, 1.1, 1.7, t));
       return;
     }
-    if (preset_ == "drone_near") {
+    if (preset_ == RenderPreset::kDroneNear) {
       // A drone shaken by hand in front of a pallet: peak rates about 45, 38 and 28 deg/s (up to
       // ~3 deg per frame at 20 Hz together) and translation of decimetres at up to ~0.9 m/s
       // (2-5 cm per frame at 20 Hz), 1-2 m from the structure: strong parallax, the rotation /
@@ -352,7 +352,7 @@ class Trajectory {
       return;
     }
     // Car: heading plus small pitch and roll oscillations (~0.1 deg/frame at 10 Hz for drive).
-    const double scale = preset_ == "forward" ? 0.5 : 1.0;
+    const double scale = preset_ == RenderPreset::kForward ? 0.5 : 1.0;
     *orientation = rotationFromYawPitchRoll(heading(t), scale * wave(deg(0.25), 0.6, 0.3, t), scale * wave(deg(0.2), 0.7, 1.1, t));
     *position = interpolate(t);
   }
@@ -366,10 +366,10 @@ class Trajectory {
 
  private:
   /// Room presets: the hand-held rotation about a fixed point.
-  bool isRoom() const { return preset_ == "handheld" || preset_ == "dim"; }
+  bool isRoom() const { return preset_ == RenderPreset::kHandheld || preset_ == RenderPreset::kDim; }
 
   static constexpr double kStep = 0.002;  // [s]
-  std::string preset_;
+  RenderPreset preset_;
   double t_min_ = 0.0;
   std::vector<Eigen::Vector3d> table_;
 };
@@ -621,8 +621,8 @@ void buildDimRoomScene(const RenderSettings& settings, Scene* scene) {
 
 std::string sceneKey(const RenderSettings& s) {
   std::ostringstream key;
-  key << s.preset << '/' << s.seed;
-  if (s.preset != "handheld" && s.preset != "dim" && s.preset != "drone_near") key << '/' << s.frames << '/' << s.rate_hz;
+  key << presetName(s.preset) << '/' << s.seed;
+  if (s.preset == RenderPreset::kDrive || s.preset == RenderPreset::kForward) key << '/' << s.frames << '/' << s.rate_hz;
   return key.str();
 }
 
@@ -635,11 +635,11 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
   std::lock_guard<std::mutex> lock(mutex);
   if (cached && cached_key == key) return cached;
   auto scene = std::make_shared<Scene>();
-  if (settings.preset == "handheld") {
+  if (settings.preset == RenderPreset::kHandheld) {
     buildRoomScene(settings, scene.get());
-  } else if (settings.preset == "drone_near") {
+  } else if (settings.preset == RenderPreset::kDroneNear) {
     buildNearScene(settings, scene.get());
-  } else if (settings.preset == "dim") {
+  } else if (settings.preset == RenderPreset::kDim) {
     buildDimRoomScene(settings, scene.get());
   } else {
     buildStreetScene(settings, scene.get());
@@ -649,10 +649,12 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
   return cached;
 }
 
+constexpr RenderPreset kPresets[] = {RenderPreset::kDrive, RenderPreset::kHandheld, RenderPreset::kForward,
+                                     RenderPreset::kDim, RenderPreset::kDroneNear};
+
 void validate(const RenderSettings& s) {
-  if (s.preset != "drive" && s.preset != "handheld" && s.preset != "forward" && s.preset != "dim" &&
-      s.preset != "drone_near")
-    throw std::invalid_argument("renderer: unknown preset '" + s.preset + "' (drive, handheld, forward, dim, drone_near)");
+  RenderPreset known;
+  if (!parsePreset(presetName(s.preset), &known)) throw std::invalid_argument("renderer: unknown preset");
   if (s.width < 8 || s.height < 8 || s.width > 16384 || s.height > 16384)
     throw std::invalid_argument("renderer: image size " + std::to_string(s.width) + "x" + std::to_string(s.height) +
                                 " out of range [8, 16384]");
@@ -873,6 +875,38 @@ Eigen::Vector2d imageMotionDirection(const Trajectory& trajectory, const RenderS
 }
 
 }  // namespace
+
+const char* presetName(RenderPreset preset) {
+  switch (preset) {
+    case RenderPreset::kHandheld: return "handheld";
+    case RenderPreset::kForward: return "forward";
+    case RenderPreset::kDim: return "dim";
+    case RenderPreset::kDroneNear: return "drone_near";
+    case RenderPreset::kDrive: break;
+  }
+  return "drive";
+}
+
+bool parsePreset(const std::string& name, RenderPreset* preset) {
+  for (const RenderPreset p : kPresets) {
+    if (name == presetName(p)) {
+      *preset = p;
+      return true;
+    }
+  }
+  return false;
+}
+
+double presetRateHz(RenderPreset preset) {
+  switch (preset) {
+    case RenderPreset::kHandheld:
+    case RenderPreset::kDim: return 30.0;
+    case RenderPreset::kDroneNear: return 20.0;
+    case RenderPreset::kDrive:
+    case RenderPreset::kForward: break;
+  }
+  return 10.0;
+}
 
 RenderedSequence renderSequence(const RenderSettings& settings) {
   validate(settings);

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "visual_gyro/hypothesis_math.h"
+#include "hypothesis_math.h"
 
 namespace visual_gyro {
 

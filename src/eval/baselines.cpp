@@ -18,7 +18,7 @@
 #endif
 
 namespace visual_gyro {
-namespace tools {
+namespace eval {
 namespace {
 
 const char* const kOpenCvNames[] = {"essential5", "fundamental8"};
@@ -247,5 +247,5 @@ BaselineResult runBaseline(const std::string& name, const std::vector<Eigen::Vec
   return invalid("unreachable");
 }
 
-}  // namespace tools
+}  // namespace eval
 }  // namespace visual_gyro

@@ -12,7 +12,7 @@
 #include <vector>
 
 namespace visual_gyro {
-namespace tools {
+namespace eval {
 
 /// Result of one baseline estimate.
 struct BaselineResult {
@@ -51,5 +51,5 @@ BaselineResult runBaseline(const std::string& name, const std::vector<Eigen::Vec
                            const BaselineSettings& settings,
                            const Eigen::Matrix3d& initial = Eigen::Matrix3d::Identity());
 
-}  // namespace tools
+}  // namespace eval
 }  // namespace visual_gyro

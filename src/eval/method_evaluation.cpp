@@ -1,0 +1,203 @@
+#include "method_evaluation.h"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "json_writer.h"
+#include "visual_gyro/geometry.h"
+
+namespace visual_gyro {
+namespace eval {
+namespace {
+
+std::string fmt(double v, int decimals = 3) {
+  if (!std::isfinite(v)) return "n/a";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  return buf;
+}
+
+}  // namespace
+
+MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, const std::vector<FramePair>& pairs) {
+  MethodSummary s;
+  s.method = method;
+  s.backend = runner->backend();
+  metrics::AccuracyAccumulator accuracy;
+  double true_trans_sum = 0;
+  int true_trans_n = 0;
+  for (const FramePair& p : pairs) {
+    if (std::isfinite(p.true_translation)) {
+      true_trans_sum += p.true_translation;
+      ++true_trans_n;
+    }
+    const MethodEstimate e = runner->run(p);
+    metrics::FrameEstimate scored;
+    scored.valid = e.valid;
+    scored.rotation = e.rotation;
+    scored.dt = p.dt;
+    scored.has_covariance = e.has_covariance;
+    scored.covariance = e.covariance;
+    FrameRow row;
+    row.frame = p.index;
+    row.matches = static_cast<int>(p.previous.size());
+    row.valid = e.valid;
+    row.estimate_ms = e.estimate_ms;
+    row.errors = metrics::scoreFrame(scored, p.truth);
+    accuracy.add(e.valid, row.errors, p.truth);
+    row.inliers = e.inliers;
+    row.pure_rotation = e.pure_rotation;
+    row.diagnostics = e.diagnostics;
+    row.error = e.error;
+    if (e.has_covariance) {
+      row.sigma_deg = std::sqrt(e.covariance.trace()) * kRadToDeg;
+      row.sigma_axes_deg = e.covariance.diagonal().cwiseSqrt() * kRadToDeg;
+    }
+    if (!e.valid && s.first_error.empty()) s.first_error = "frame " + std::to_string(p.index) + ": " + e.error;
+    s.detect += p.front_end.detect;
+    s.describe += p.front_end.describe;
+    s.match += p.front_end.match;
+    s.estimate += e.estimate_ms;
+    s.vote += e.vote_ms;
+    s.vote_device += e.vote_device_ms;
+    s.refine += e.refine_ms;
+    s.matches_mean += row.matches;
+    if (p.matching == "guided") ++s.guided_pairs;
+    if (p.matching == "global_fallback") ++s.fallback_pairs;
+    s.rows.push_back(row);
+  }
+  s.accuracy = accuracy.summary();
+  if (!pairs.empty()) {
+    const double n = static_cast<double>(pairs.size());
+    s.detect /= n;
+    s.describe /= n;
+    s.match /= n;
+    s.estimate /= n;
+    s.vote /= n;
+    s.vote_device /= n;
+    s.refine /= n;
+    s.total = s.detect + s.describe + s.match + s.estimate;
+    s.matches_mean /= n;
+  }
+  if (true_trans_n > 0) s.true_translation_mean = true_trans_sum / true_trans_n;
+  return s;
+}
+
+std::string summaryText(const RunDescription& run, const MethodSummary& s) {
+  const metrics::AccuracySummary& a = s.accuracy;
+  std::ostringstream out;
+  out << "== " << s.method << " on " << run.dataset << " (" << run.layout << ", backend " << s.backend << ")\n";
+  out << "   frames " << a.frames << ", invalid " << a.invalid
+      << " (invalid frames count as identity rotation in the errors)";
+  if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
+  if (run.stride > 1) out << ", stride " << run.stride;
+  out << "\n";
+  out << "   rotation error  RMSE " << fmt(a.rot_rmse_deg) << " deg, max " << fmt(a.rot_max_deg) << " deg\n";
+  out << "   yaw error       RMSE " << fmt(a.yaw_rmse_deg) << " deg, max " << fmt(a.yaw_max_deg) << " deg\n";
+  out << "   rate            mean " << fmt(a.mean_rate_dps) << " deg/s";
+  if (std::isfinite(a.rate_rmse_dps) && run.truth == "gyro") {
+    // The loader integrates the raw gyro (bias included), so on a static stretch the reference
+    // itself reads the bias; its mean is shown to make that visible.
+    out << ", RMSE vs gyro " << fmt(a.rate_rmse_dps) << " deg/s (gyro: raw, bias not removed, mean |rate| "
+        << fmt(a.true_rate_mean_dps) << " deg/s)";
+  } else if (std::isfinite(a.rate_rmse_dps)) {
+    out << ", RMSE vs poses " << fmt(a.rate_rmse_dps) << " deg/s (mean |rate| " << fmt(a.true_rate_mean_dps)
+        << " deg/s)";
+  }
+  out << "\n";
+  if (std::isfinite(a.nees_mean))
+    out << "   covariance      NEES mean " << fmt(a.nees_mean, 2) << " (3 when honest), beyond 99 % bound "
+        << fmt(100.0 * a.nees_beyond99, 1) << " % of valid frames\n";
+  out << "   matches         mean " << fmt(s.matches_mean, 1) << " (front end " << s.front_end;
+  if (!s.matching.empty()) {
+    out << ", matching " << s.matching;
+    if (s.matching == "guided")
+      out << ": " << s.guided_pairs << " pairs guided, " << s.fallback_pairs << " fell back to global";
+  }
+  out << ")\n";
+  out << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
+      << fmt(s.match) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
+  if (std::isfinite(s.vote)) {
+    out << "   estimate split  vote " << fmt(s.vote);
+    if (std::isfinite(s.vote_device)) out << " (GPU kernels " << fmt(s.vote_device) << ")";
+    out << ", refine " << fmt(s.refine) << "\n";
+  }
+  if (!s.first_error.empty()) out << "   first invalid   " << s.first_error << "\n";
+  return out.str();
+}
+
+std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
+  const metrics::AccuracySummary& a = s.accuracy;
+  JsonObject times;
+  times.add("detect", s.detect).add("describe", s.describe).add("match", s.match)
+      .add("estimate", s.estimate).add("total", s.total);
+  if (std::isfinite(s.vote)) times.add("vote", s.vote).add("vote_device", s.vote_device).add("refine", s.refine);
+  JsonObject j;
+  j.add("dataset", run.dataset)
+      .add("method", s.method)
+      .add("frames", a.frames)
+      .add("invalid", a.invalid)
+      .add("rot_rmse_deg", a.rot_rmse_deg)
+      .add("rot_max_deg", a.rot_max_deg)
+      .add("yaw_rmse_deg", a.yaw_rmse_deg)
+      .add("yaw_max_deg", a.yaw_max_deg)
+      .add("mean_rate_dps", a.mean_rate_dps)
+      .add("rate_rmse_dps", a.rate_rmse_dps)
+      .add("ms_per_frame", times)
+      .add("backend", s.backend)
+      .add("matches_mean", s.matches_mean)
+      .add("front_end", s.front_end)
+      .add("matching", s.matching)
+      .add("guided_pairs", s.guided_pairs)
+      .add("fallback_pairs", s.fallback_pairs)
+      .add("layout", run.layout)
+      .add("hypotheses", isOwnMethod(s.method) ? run.hypotheses : 0)
+      .add("outliers", run.outliers)
+      .add("stride", run.stride)
+      .add("true_rot_mean_deg", a.true_rotation_mean_deg)
+      .add("true_trans_mean_m", s.true_translation_mean)
+      .add("gyro_mean_rate_dps", a.true_rate_mean_dps)
+      .add("truth", run.truth)
+      .add("nees_mean", a.nees_mean)
+      .add("nees_beyond_99", a.nees_beyond99);
+  return j.str();
+}
+
+void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& all) {
+  std::ofstream f(path);
+  if (!f) throw DataError("cannot write " + path);
+  f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
+       "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
+       "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,err_x_deg,err_y_deg,"
+       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,error\n";
+  auto num = [](double v) -> std::string {
+    if (!std::isfinite(v)) return "";
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.6g", v);
+    return buf;
+  };
+  for (const MethodSummary& s : all) {
+    for (const FrameRow& r : s.rows) {
+      const metrics::FrameErrors& e = r.errors;
+      f << r.frame << ',' << s.method << ',' << r.matches << ',' << (r.valid ? 1 : 0) << ',' << num(e.yaw_deg)
+        << ',' << num(e.true_yaw_deg) << ',' << num(e.rotation_error_deg) << ',' << num(e.yaw_error_deg) << ','
+        << num(e.rate_dps) << ',' << num(r.estimate_ms) << ',' << num(e.rate_error_dps) << ',' << num(e.nees)
+        << ',' << num(r.sigma_deg) << ',' << r.inliers << ',' << (r.pure_rotation ? 1 : 0) << ','
+        << (r.diagnostics.prior_used ? 1 : 0) << ',' << (r.diagnostics.wide_vote ? 1 : 0) << ','
+        << r.diagnostics.winner_source << ',' << r.diagnostics.candidates_verified << ','
+        << r.diagnostics.rotation_inliers << ',' << r.diagnostics.epipolar_inliers << ','
+        << r.diagnostics.runner_up_inliers << ','
+        << (r.diagnostics.valley_moved ? "moved" : r.diagnostics.valley_searched ? "searched" : "") << ','
+        << num(r.diagnostics.prior_offset * kRadToDeg) << ',' << num(r.diagnostics.residual_sigma * kRadToDeg);
+      for (int k = 0; k < 3; ++k) f << ',' << num(e.error_vector_deg[k]);
+      for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
+      f << ",\"" << r.error << "\"\n";
+    }
+  }
+  if (!f) throw DataError("cannot write " + path);
+}
+
+}  // namespace eval
+}  // namespace visual_gyro

@@ -1,0 +1,156 @@
+#include "method_runners.h"
+
+#include <chrono>
+#include <iostream>
+
+#include "visual_gyro/geometry.h"
+
+namespace visual_gyro {
+namespace eval {
+namespace {
+
+double elapsedMs(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+/// vote / paper: a RotationEstimator fed the prior VisualGyro would give it (its own previous
+/// valid rotation vector, rescaled to this interval; none after an invalid estimate).
+class OwnEstimatorRunner : public MethodRunner {
+ public:
+  explicit OwnEstimatorRunner(const EstimatorSettings& settings)
+      : estimator_(createRotationEstimator(settings, [](const std::string& w) {
+          std::cerr << "warning: " << w << "\n";
+        })) {}
+
+  MethodEstimate run(const FramePair& pair) override {
+    const RotationPrior prior = prior_.priorFor(pair.dt);
+    const auto start = std::chrono::steady_clock::now();
+    const RotationResult r = estimator_->estimate(pair.previous, pair.current, prior);
+    MethodEstimate out;
+    out.estimate_ms = elapsedMs(start);
+    out.vote_ms = r.times.vote;
+    out.vote_device_ms = r.backend == "cuda" ? r.times.vote_device : std::numeric_limits<double>::quiet_NaN();
+    out.refine_ms = r.times.refine;
+    prior_.update(r, pair.dt);
+    out.valid = r.valid();
+    if (!out.valid) out.error = std::string(frameStatusName(r.status)) + ": " + r.reason;
+    out.inliers = r.inliers;
+    out.pure_rotation = r.pure_rotation;
+    out.diagnostics = r.diagnostics;
+    if (out.valid) {
+      out.rotation = r.rotation;
+      out.rotation_vector = r.rotation_vector;
+      out.has_covariance = true;
+      out.covariance = r.covariance;
+    }
+    return out;
+  }
+  std::string backend() const override { return estimator_->backendName(); }
+
+ private:
+  std::unique_ptr<RotationEstimator> estimator_;
+  PriorTracker prior_;  // the same prior VisualGyro gives its estimator
+};
+
+/// OpenCV / OpenGV baselines; the eigensolver starts from this method's previous valid estimate.
+class BaselineRunner : public MethodRunner {
+ public:
+  BaselineRunner(const std::string& name, const BaselineSettings& settings) : name_(name), settings_(settings) {}
+
+  MethodEstimate run(const FramePair& pair) override {
+    BaselineSettings s = settings_;
+    s.seed = settings_.seed + pair.index;
+    const auto start = std::chrono::steady_clock::now();
+    const BaselineResult r = runBaseline(name_, pair.previous, pair.current, s, initial_);
+    MethodEstimate out;
+    out.estimate_ms = elapsedMs(start);
+    out.valid = r.valid;
+    out.error = r.error;
+    if (r.valid) {
+      out.rotation = r.rotation;
+      out.rotation_vector = so3Log(r.rotation);
+      initial_ = r.rotation;
+    } else {
+      initial_.setIdentity();
+    }
+    return out;
+  }
+  std::string backend() const override { return "cpu"; }
+
+ private:
+  std::string name_;
+  BaselineSettings settings_;
+  Eigen::Matrix3d initial_ = Eigen::Matrix3d::Identity();
+};
+
+/// Applies the pipeline's plausibility rules to a method: no estimate on a frozen image, and a
+/// rate above max_rate_dps is invalid, exactly as VisualGyro reports them.
+class PlausibilityRunner : public MethodRunner {
+ public:
+  PlausibilityRunner(std::unique_ptr<MethodRunner> inner, const VisualGyroSettings& settings)
+      : inner_(std::move(inner)), settings_(settings) {}
+
+  MethodEstimate run(const FramePair& pair) override {
+    if (pair.frozen) {
+      MethodEstimate out;
+      out.error = std::string(frameStatusName(FrameStatus::kFrozenImage)) +
+                  ": image identical to the previous one (camera frozen?)";
+      return out;
+    }
+    MethodEstimate out = inner_->run(pair);
+    if (out.valid) {
+      const std::string implausible = checkRatePlausible(out.rotation_vector, pair.dt, settings_);
+      if (!implausible.empty()) {
+        out.valid = false;
+        out.error = std::string(frameStatusName(FrameStatus::kImplausibleRate)) + ": " + implausible;
+        out.rotation.setIdentity();
+        out.rotation_vector.setZero();
+      }
+    }
+    return out;
+  }
+  std::string backend() const override { return inner_->backend(); }
+
+ private:
+  std::unique_ptr<MethodRunner> inner_;
+  VisualGyroSettings settings_;
+};
+
+}  // namespace
+
+bool isOwnMethod(const std::string& method) {
+  EstimationMethod parsed;
+  return parseMethod(method, &parsed);
+}
+
+std::vector<std::string> methodNames() {
+  std::vector<std::string> names{methodName(EstimationMethod::kVote), methodName(EstimationMethod::kPaper)};
+  for (const auto& n : baselineNames())
+    if (isBaselineCompiled(n)) names.push_back(n);
+  return names;
+}
+
+std::string methodProblem(const std::string& method) {
+  if (isOwnMethod(method) || isBaselineCompiled(method)) return "";
+  if (isOpenGvBaseline(method)) {
+    return "method '" + method + "' needs OpenGV, which this build does not have (install libopengv-dev and rebuild)";
+  }
+  std::string known = "vote, paper";
+  for (const auto& n : baselineNames()) known += ", " + n;
+  return "unknown method '" + method + "' (known: " + known + ")";
+}
+
+std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
+                                         const BaselineSettings& baseline) {
+  std::unique_ptr<MethodRunner> runner;
+  EstimatorSettings estimator = settings.estimator;
+  if (parseMethod(method, &estimator.method)) {
+    runner = std::make_unique<OwnEstimatorRunner>(estimator);
+  } else {
+    runner = std::make_unique<BaselineRunner>(method, baseline);
+  }
+  return std::make_unique<PlausibilityRunner>(std::move(runner), settings);
+}
+
+}  // namespace eval
+}  // namespace visual_gyro

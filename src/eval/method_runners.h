@@ -1,0 +1,65 @@
+// Estimation methods behind one interface, so that `evaluate` runs ours and the baselines on the
+// same frame pairs: each runner keeps its own state across frames (prior, previous estimate).
+#pragma once
+
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "baselines.h"
+#include "frame_pairs.h"
+#include "visual_gyro/rotation_estimator.h"
+#include "visual_gyro/visual_gyro.h"
+
+namespace visual_gyro {
+namespace eval {
+
+/// One method's estimate for one frame pair.
+struct MethodEstimate {
+  bool valid = false;
+  /// Why not valid: status name and reason ("" when valid).
+  std::string error;
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< b_prev ~ R b_cur; identity when invalid
+  Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();
+  double estimate_ms = 0.0;
+  /// Covariance of the rotation vector [rad^2] (vote / paper; the baselines give none).
+  bool has_covariance = false;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int inliers = -1;  ///< vote / paper: RotationResult::inliers; -1 for the baselines
+  bool pure_rotation = false;
+  VoteDiagnostics diagnostics;  ///< vote only
+  // vote / paper only (NaN for the baselines): the estimate's voter part (host clock), its GPU
+  // kernels (NaN on the CPU backend), and the host part after the vote (see EstimateTimes).
+  double vote_ms = std::numeric_limits<double>::quiet_NaN();
+  double vote_device_ms = std::numeric_limits<double>::quiet_NaN();
+  double refine_ms = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// One method with its own state across frames.
+class MethodRunner {
+ public:
+  virtual ~MethodRunner() = default;
+  /// Estimates the pair's rotation.
+  virtual MethodEstimate run(const FramePair& pair) = 0;
+  /// "cpu" or "cuda".
+  virtual std::string backend() const = 0;
+};
+
+/// True for the package's own methods (vote, paper); the others are baselines.
+bool isOwnMethod(const std::string& method);
+/// Every method this build has: vote, paper, then the compiled baselines.
+std::vector<std::string> methodNames();
+/// "" when this build has `method`, else why not (unknown, or needs OpenGV).
+std::string methodProblem(const std::string& method);
+
+/// The runner of `method` (isOwnMethod: a RotationEstimator with `estimator`'s settings and this
+/// method; else the baseline), wrapped so that it follows the pipeline's plausibility rules (no
+/// estimate on a frozen image; a rate above max_rate_dps is invalid) exactly as VisualGyro does.
+std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
+                                         const BaselineSettings& baseline);
+
+}  // namespace eval
+}  // namespace visual_gyro
