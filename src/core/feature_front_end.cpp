@@ -213,19 +213,15 @@ __attribute__((always_inline)) inline void guidedKernel(
           const int hamming = __builtin_popcountll(a0 ^ b[0]) + __builtin_popcountll(a1 ^ b[1]) +
                               __builtin_popcountll(a2 ^ b[2]) + __builtin_popcountll(a3 ^ b[3]);
           const int d = dx * dx + dy * dy > r2 ? std::numeric_limits<int>::max() : hamming;
-          if (d < second) {
-            if (d < best) {
-              second = best;
-              best = d;
-              best_k = k;
-            } else {
-              second = d;
-            }
-          }
-          if (d < col_best_d[k]) {
-            col_best_d[k] = d;
-            col_best[k] = i;
-          }
+          // Branch-free bookkeeping (the same result as the branches in bruteForceKernel: the
+          // first of equal distances stays best): which candidate wins is data-dependent and
+          // about as unpredictable as a coin, so compares and selects beat branches here.
+          second = std::min(second, std::max(best, d));
+          best_k = d < best ? k : best_k;
+          best = std::min(best, d);
+          const int old_d = col_best_d[k];
+          col_best[k] = d < old_d ? i : col_best[k];
+          col_best_d[k] = std::min(old_d, d);
         }
       }
     }
