@@ -290,6 +290,7 @@ TEST(FrontEndSettings, DefaultsAgreeWithCfgYamlAndReadme) {
       {"max_hamming", std::to_string(d.max_hamming)},
       {"matching", d.matching},
       {"guided_min_matches", std::to_string(d.guided_min_matches)}};
+  const std::map<std::string, bool> bool_defaults{{"subpixel_refinement", d.subpixel_refinement}};
   const std::map<std::string, double> real_defaults{{"smoothing_sigma", d.smoothing_sigma},
                                                     {"max_ratio", d.max_ratio},
                                                     {"guided_radius_px", d.guided_radius_px},
@@ -315,6 +316,13 @@ TEST(FrontEndSettings, DefaultsAgreeWithCfgYamlAndReadme) {
     EXPECT_TRUE(same(m[1])) << key << ": README default " << m[1];
   };
   for (const auto& [key, value] : defaults) check(key, [&](const std::string& v) { return v == value; });
+  for (const auto& [key, value] : bool_defaults) {
+    // The .cfg writes Python's True / False as the last argument (what follows the closing
+    // parenthesis is read along), the yaml and the README true / false.
+    check(key, [&](const std::string& v) {
+      return v == (value ? "true" : "false") || v.rfind(value ? "True)" : "False)", 0) == 0;
+    });
+  }
   for (const auto& [key, value] : real_defaults)
     check(key, [&](const std::string& v) { return std::abs(std::stod(v) - value) < 1e-12; });
 }

@@ -665,4 +665,106 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
                  w.col_best.data(), w.grid_items.data(), matches);
 }
 
+void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat& current_gray,
+                                    const FrameFeatures& previous, const FrameFeatures& current,
+                                    std::vector<FeatureMatch>* matches) const {
+  checkSettings(settings_);
+  checkFeatures(previous, current, "refineMatches");
+  for (FeatureMatch& m : *matches) m.offset = cv::Point2f(0.f, 0.f);
+  if (!settings_.subpixel_refinement || matches->empty()) return;
+  checkImage(previous_gray, "refineMatches");
+  checkImage(current_gray, "refineMatches");
+  if (previous_gray.size() != current_gray.size()) {
+    throw std::invalid_argument("FeatureFrontEnd::refineMatches: the images differ in size");
+  }
+  const int width = current_gray.cols, height = current_gray.rows;
+  constexpr int h = kRefineHalfWindow, side = 2 * h + 1, n = side * side;
+  constexpr int kIterations = 4;
+  constexpr float kConverged = 0.01f;  // px: an update this small ends the iterations
+  constexpr float kMaxShift = 1.0f;    // px: a larger correction is not the detected corner
+  // Template, its gradients and the inverse of the Gauss-Newton matrix, once per match
+  // (inverse compositional: the template's gradients serve every iteration).
+  std::array<float, n> templ, gx, gy;
+  for (FeatureMatch& m : *matches) {
+    const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
+    const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
+    const int qx = static_cast<int>(std::lround(q.x)), qy = static_cast<int>(std::lround(q.y));
+    // Template pixels and their central differences inside the image; the current window, shifted
+    // by up to kMaxShift and sampled bilinearly, too.
+    if (px - h - 1 < 0 || py - h - 1 < 0 || px + h + 1 >= width || py + h + 1 >= height ||
+        qx - h - 2 < 0 || qy - h - 2 < 0 || qx + h + 2 >= width || qy + h + 2 >= height) {
+      continue;
+    }
+    float hxx = 0.f, hxy = 0.f, hyy = 0.f, gx_mean = 0.f, gy_mean = 0.f;
+    for (int v = -h, i = 0; v <= h; ++v) {
+      const uint8_t* row = previous_gray.ptr<uint8_t>(py + v) + px;
+      const uint8_t* up = previous_gray.ptr<uint8_t>(py + v - 1) + px;
+      const uint8_t* down = previous_gray.ptr<uint8_t>(py + v + 1) + px;
+      for (int u = -h; u <= h; ++u, ++i) {
+        templ[i] = row[u];
+        gx[i] = 0.5f * (static_cast<float>(row[u + 1]) - static_cast<float>(row[u - 1]));
+        gy[i] = 0.5f * (static_cast<float>(down[u]) - static_cast<float>(up[u]));
+        gx_mean += gx[i];
+        gy_mean += gy[i];
+      }
+    }
+    // The brightness offset between the frames is removed from the residual (its mean), which
+    // projects it out of the gradients as well: zero-mean gradients in the normal equations.
+    gx_mean /= n;
+    gy_mean /= n;
+    for (int i = 0; i < n; ++i) {
+      gx[i] -= gx_mean;
+      gy[i] -= gy_mean;
+      hxx += gx[i] * gx[i];
+      hxy += gx[i] * gy[i];
+      hyy += gy[i] * gy[i];
+    }
+    // Corner structure: both eigenvalues of the structure tensor well above zero. An edge (one
+    // small eigenvalue) leaves the position along it undetermined: no refinement.
+    const float det = hxx * hyy - hxy * hxy, trace = hxx + hyy;
+    if (!(trace > 0.f) || !(det > 0.01f * trace * trace)) continue;
+    const float ixx = hyy / det, ixy = -hxy / det, iyy = hxx / det;
+
+    // Shift d of the current window: current content at q + d matches the template at p. The
+    // pixels the iterations can sample (|d| <= kMaxShift, plus one for the bilinear neighbour) are
+    // converted to float once.
+    constexpr int reach = h + 2, span = 2 * reach + 1;
+    std::array<float, span * span> window;
+    for (int v = -reach, i = 0; v <= reach; ++v) {
+      const uint8_t* row = current_gray.ptr<uint8_t>(qy + v) + qx;
+      for (int u = -reach; u <= reach; ++u, ++i) window[i] = row[u];
+    }
+    float dx = 0.f, dy = 0.f;
+    bool ok = true;
+    for (int it = 0; it < kIterations; ++it) {
+      const int ox = static_cast<int>(std::floor(dx)), oy = static_cast<int>(std::floor(dy));
+      const float fx = dx - ox, fy = dy - oy;
+      float bx = 0.f, by = 0.f;
+      for (int v = -h, i = 0; v <= h; ++v) {
+        const float* r0 = &window[(v + oy + reach) * span + ox + reach];
+        const float* r1 = r0 + span;
+        for (int u = -h; u <= h; ++u, ++i) {
+          const float top = r0[u] + fx * (r0[u + 1] - r0[u]);
+          const float bottom = r1[u] + fx * (r1[u + 1] - r1[u]);
+          const float e = top + fy * (bottom - top) - templ[i];
+          bx += gx[i] * e;
+          by += gy[i] * e;
+        }
+      }
+      const float step_x = ixx * bx + ixy * by, step_y = ixy * bx + iyy * by;
+      dx -= step_x;
+      dy -= step_y;
+      if (!(std::abs(dx) <= kMaxShift && std::abs(dy) <= kMaxShift)) {
+        ok = false;
+        break;
+      }
+      if (step_x * step_x + step_y * step_y < kConverged * kConverged) break;
+    }
+    if (!ok) continue;
+    // Previous keypoint p sits at the rounded template centre plus its own fraction.
+    m.offset = cv::Point2f(static_cast<float>(qx) + dx + (p.x - static_cast<float>(px)) - q.x,
+                           static_cast<float>(qy) + dy + (p.y - static_cast<float>(py)) - q.y);
+  }
+}
+
 }  // namespace visual_gyro

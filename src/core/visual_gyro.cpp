@@ -187,6 +187,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     auto t0 = std::chrono::steady_clock::now();
     try {
       matchFrames(prior);
+      front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
     } catch (const std::exception& e) {
       // Before any state changed: the frame is rejected, the previous one stays.
       result.error = std::string("front end failed: ") + e.what();
@@ -204,6 +205,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         const StageTimes guided_times = result.rotation.times;
         t0 = std::chrono::steady_clock::now();
         front_end_.match(previous_features_, features_, &matches_);
+        front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
         matching_ = "global_fallback";
         times.match += elapsedMs(t0);
         collectMatches(&result);
@@ -253,9 +255,16 @@ void VisualGyro::collectMatches(FrameResult* result) const {
   result->current_bearings.clear();
   for (const FeatureMatch& m : matches_) {
     result->previous_pixels.push_back(previous_features_.keypoints[m.previous]);
-    result->current_pixels.push_back(features_.keypoints[m.current]);
     result->previous_bearings.push_back(previous_keypoint_bearings_[m.previous]);
-    result->current_bearings.push_back(bearings_[m.current]);
+    if (m.offset.x == 0.f && m.offset.y == 0.f) {
+      result->current_pixels.push_back(features_.keypoints[m.current]);
+      result->current_bearings.push_back(bearings_[m.current]);
+    } else {
+      // Sub-pixel position of the match (refineMatches()).
+      const cv::Point2f pixel = features_.keypoints[m.current] + m.offset;
+      result->current_pixels.push_back(pixel);
+      result->current_bearings.push_back(camera_.bearing(pixel.x, pixel.y));
+    }
   }
 }
 

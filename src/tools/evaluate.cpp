@@ -379,6 +379,7 @@ void applySetting(const std::string& assignment, VisualGyroSettings* s) {
   else if (key == "max_ratio") f.max_ratio = toDouble();
   else if (key == "max_hamming") f.max_hamming = toInt();
   else if (key == "cross_check") f.cross_check = parseBool(v, what);
+  else if (key == "subpixel_refinement") f.subpixel_refinement = parseBool(v, what);
   // Estimator (method is chosen per method with --method).
   else if (key == "backend") e.backend = v;
   else if (key == "hypotheses") e.hypotheses = toInt();
