@@ -338,8 +338,9 @@ Figures evaluateVote(const std::string& folder, const std::string& extra) {
   return figures;
 }
 
-/// The front end as it was before adaptive detection and guided matching.
-const char* const kFixedGlobalFrontEnd = "--set matching=global --set min_fast_threshold=20";
+/// The front end as it was before adaptive detection, guided matching and sub-pixel positions.
+const char* const kFixedGlobalFrontEnd =
+    "--set matching=global --set min_fast_threshold=20 --set subpixel_refinement=false";
 
 }  // namespace
 
