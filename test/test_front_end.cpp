@@ -495,8 +495,9 @@ RefinedShift refineKnownShift(const FeatureFrontEnd& front_end, double shift_x, 
 // Integer positions are off by up to half a pixel; the alignment recovers the true sub-pixel
 // displacement of each corner (including the integer part found by matching).
 TEST(SubpixelRefinement, RecoversKnownSubpixelShift) {
-  const FeatureFrontEnd front_end;
-  ASSERT_TRUE(front_end.settings().subpixel_refinement);
+  FrontEndSettings settings;
+  settings.subpixel_refinement = true;
+  const FeatureFrontEnd front_end(settings);
   for (const cv::Point2d shift : {cv::Point2d(0.3, -0.4), cv::Point2d(-0.45, 0.2), cv::Point2d(2.35, 1.6)}) {
     const RefinedShift r = refineKnownShift(front_end, shift.x, shift.y);
     std::printf("shift (%.2f, %.2f): %zu of %zu matches refined, median error %.3f px, mean (%.3f, %.3f)\n",
@@ -519,7 +520,8 @@ TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {
   EXPECT_EQ(r.refined, 0u);
 
   // A flat patch has no structure to align: the match keeps its integer position.
-  const FeatureFrontEnd on;
+  settings.subpixel_refinement = true;
+  const FeatureFrontEnd on(settings);
   const cv::Mat flat(100, 100, CV_8UC1, cv::Scalar(90));
   FrameFeatures a, b;
   a.keypoints = {cv::Point2f(50, 50)};

@@ -45,8 +45,9 @@ struct FrontEndSettings {
   int guided_min_matches = 30;
   /// Sub-pixel match positions: each match's current corner is moved by a translational
   /// Lucas-Kanade alignment of the previous corner's patch (refineMatches()). Off: integer
-  /// FAST positions.
-  bool subpixel_refinement = true;
+  /// FAST positions. Off by default: the estimator's covariance model is calibrated on integer
+  /// positions (see the README's front-end section).
+  bool subpixel_refinement = false;
 };
 
 /// "" when usable, else what is wrong.

@@ -679,45 +679,66 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
   }
   const int width = current_gray.cols, height = current_gray.rows;
   constexpr int h = kRefineHalfWindow, side = 2 * h + 1, n = side * side;
+  // Rows are padded to a multiple of 4 floats (zero gradients in the padding), so the per-row
+  // loops have a fixed length the compiler turns into vector code; sums over a row are kept per
+  // column and added up once per iteration.
+  constexpr int stride = (side + 3) / 4 * 4;
   constexpr int kIterations = 4;
   constexpr float kConverged = 0.01f;  // px: an update this small ends the iterations
   constexpr float kMaxShift = 1.0f;    // px: a larger correction is not the detected corner
+  // The current pixels the iterations can sample (|d| <= kMaxShift, plus one for the bilinear
+  // neighbour, plus the padding), converted to float once per match.
+  constexpr int reach = h + 2, span = stride + 4;
   // Template, its gradients and the inverse of the Gauss-Newton matrix, once per match
   // (inverse compositional: the template's gradients serve every iteration).
-  std::array<float, n> templ, gx, gy;
+  alignas(16) std::array<float, side * stride> templ, gx, gy;
+  alignas(16) std::array<float, (2 * reach + 1) * span> window;
+  alignas(16) std::array<float, stride> acc_x, acc_y;
   for (FeatureMatch& m : *matches) {
     const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
     const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
     const int qx = static_cast<int>(std::lround(q.x)), qy = static_cast<int>(std::lround(q.y));
     // Template pixels and their central differences inside the image; the current window, shifted
-    // by up to kMaxShift and sampled bilinearly, too.
+    // by up to kMaxShift and sampled bilinearly, too (the padding columns are read as well).
     if (px - h - 1 < 0 || py - h - 1 < 0 || px + h + 1 >= width || py + h + 1 >= height ||
-        qx - h - 2 < 0 || qy - h - 2 < 0 || qx + h + 2 >= width || qy + h + 2 >= height) {
+        qx - reach < 0 || qy - reach < 0 || qx - reach + span > width || qy + reach >= height) {
       continue;
     }
-    float hxx = 0.f, hxy = 0.f, hyy = 0.f, gx_mean = 0.f, gy_mean = 0.f;
-    for (int v = -h, i = 0; v <= h; ++v) {
-      const uint8_t* row = previous_gray.ptr<uint8_t>(py + v) + px;
-      const uint8_t* up = previous_gray.ptr<uint8_t>(py + v - 1) + px;
-      const uint8_t* down = previous_gray.ptr<uint8_t>(py + v + 1) + px;
-      for (int u = -h; u <= h; ++u, ++i) {
-        templ[i] = row[u];
-        gx[i] = 0.5f * (static_cast<float>(row[u + 1]) - static_cast<float>(row[u - 1]));
-        gy[i] = 0.5f * (static_cast<float>(down[u]) - static_cast<float>(up[u]));
-        gx_mean += gx[i];
-        gy_mean += gy[i];
+    float gx_mean = 0.f, gy_mean = 0.f;
+    for (int v = 0; v < side; ++v) {
+      const uint8_t* row = previous_gray.ptr<uint8_t>(py - h + v) + px - h;
+      const uint8_t* up = previous_gray.ptr<uint8_t>(py - h + v - 1) + px - h;
+      const uint8_t* down = previous_gray.ptr<uint8_t>(py - h + v + 1) + px - h;
+      float* t = &templ[v * stride];
+      float* ex = &gx[v * stride];
+      float* ey = &gy[v * stride];
+      for (int u = 0; u < side; ++u) {
+        t[u] = row[u];
+        ex[u] = 0.5f * (static_cast<float>(row[u + 1]) - static_cast<float>(row[u - 1]));
+        ey[u] = 0.5f * (static_cast<float>(down[u]) - static_cast<float>(up[u]));
+        gx_mean += ex[u];
+        gy_mean += ey[u];
       }
     }
     // The brightness offset between the frames is removed from the residual (its mean), which
     // projects it out of the gradients as well: zero-mean gradients in the normal equations.
     gx_mean /= n;
     gy_mean /= n;
-    for (int i = 0; i < n; ++i) {
-      gx[i] -= gx_mean;
-      gy[i] -= gy_mean;
-      hxx += gx[i] * gx[i];
-      hxy += gx[i] * gy[i];
-      hyy += gy[i] * gy[i];
+    float hxx = 0.f, hxy = 0.f, hyy = 0.f;
+    for (int v = 0; v < side; ++v) {
+      for (int u = 0; u < stride; ++u) {
+        float& ex = gx[v * stride + u];
+        float& ey = gy[v * stride + u];
+        if (u < side) {
+          ex -= gx_mean;
+          ey -= gy_mean;
+        } else {
+          ex = ey = templ[v * stride + u] = 0.f;
+        }
+        hxx += ex * ex;
+        hxy += ex * ey;
+        hyy += ey * ey;
+      }
     }
     // Corner structure: both eigenvalues of the structure tensor well above zero. An edge (one
     // small eigenvalue) leaves the position along it undetermined: no refinement.
@@ -725,31 +746,37 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
     if (!(trace > 0.f) || !(det > 0.01f * trace * trace)) continue;
     const float ixx = hyy / det, ixy = -hxy / det, iyy = hxx / det;
 
-    // Shift d of the current window: current content at q + d matches the template at p. The
-    // pixels the iterations can sample (|d| <= kMaxShift, plus one for the bilinear neighbour) are
-    // converted to float once.
-    constexpr int reach = h + 2, span = 2 * reach + 1;
-    std::array<float, span * span> window;
-    for (int v = -reach, i = 0; v <= reach; ++v) {
-      const uint8_t* row = current_gray.ptr<uint8_t>(qy + v) + qx;
-      for (int u = -reach; u <= reach; ++u, ++i) window[i] = row[u];
+    for (int v = 0; v <= 2 * reach; ++v) {
+      const uint8_t* row = current_gray.ptr<uint8_t>(qy - reach + v) + qx - reach;
+      for (int u = 0; u < span; ++u) window[v * span + u] = row[u];
     }
+    // Shift d of the current window: current content at q + d matches the template at p.
     float dx = 0.f, dy = 0.f;
     bool ok = true;
     for (int it = 0; it < kIterations; ++it) {
       const int ox = static_cast<int>(std::floor(dx)), oy = static_cast<int>(std::floor(dy));
       const float fx = dx - ox, fy = dy - oy;
-      float bx = 0.f, by = 0.f;
-      for (int v = -h, i = 0; v <= h; ++v) {
-        const float* r0 = &window[(v + oy + reach) * span + ox + reach];
+      acc_x.fill(0.f);
+      acc_y.fill(0.f);
+      for (int v = 0; v < side; ++v) {
+        // Template row v (offset -h) against the current window at offset -h + d.
+        const float* r0 = &window[(v + oy + reach - h) * span + ox + reach - h];
         const float* r1 = r0 + span;
-        for (int u = -h; u <= h; ++u, ++i) {
+        const float* t = &templ[v * stride];
+        const float* ex = &gx[v * stride];
+        const float* ey = &gy[v * stride];
+        for (int u = 0; u < stride; ++u) {
           const float top = r0[u] + fx * (r0[u + 1] - r0[u]);
           const float bottom = r1[u] + fx * (r1[u + 1] - r1[u]);
-          const float e = top + fy * (bottom - top) - templ[i];
-          bx += gx[i] * e;
-          by += gy[i] * e;
+          const float e = top + fy * (bottom - top) - t[u];
+          acc_x[u] += ex[u] * e;
+          acc_y[u] += ey[u] * e;
         }
+      }
+      float bx = 0.f, by = 0.f;
+      for (int u = 0; u < stride; ++u) {
+        bx += acc_x[u];
+        by += acc_y[u];
       }
       const float step_x = ixx * bx + ixy * by, step_y = ixy * bx + iyy * by;
       dx -= step_x;
