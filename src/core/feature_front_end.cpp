@@ -1,5 +1,6 @@
 // FAST corners with grid bucketing, BRIEF-256 descriptors and brute-force Hamming matching.
 #include "visual_gyro/feature_front_end.h"
+#include "visual_gyro/random.h"
 
 #include <algorithm>
 #include <cmath>
@@ -36,27 +37,14 @@ void checkSettings(const FrontEndSettings& settings) {
   if (!why.empty()) throw std::invalid_argument("FeatureFrontEnd: " + why);
 }
 
-/// splitmix64 (Steele, Lea, Flood 2014): tiny, well mixed and fully specified, so the BRIEF
-/// pattern is the same wherever it is built.
-struct SplitMix64 {
-  uint64_t state;
-  uint64_t next() {
-    uint64_t z = (state += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-  }
-  /// Uniform in (0, 1]: the top 53 bits, shifted by one so that log() never sees 0.
-  double uniform() { return (static_cast<double>(next() >> 11) + 1.0) * 0x1.0p-53; }
-};
-
 std::vector<std::array<int8_t, 4>> buildBriefPattern() {
   // Calonder et al. 2010, "G II": both points drawn i.i.d. from an isotropic Gaussian with
   // sigma^2 = S^2 / 25 for a patch of size S = 31.
   constexpr double kSigma = 31.0 / 5.0;
   constexpr uint64_t kSeed = 0x62726965665F5F31ULL;  // "brief__1"
   constexpr double kTwoPi = 6.283185307179586476925286766559;
-  SplitMix64 rng{kSeed};
+  // The package's generator: fully specified, so the pattern is the same wherever it is built.
+  SplitMix64 rng(kSeed);
   // Box-Muller produces normals in pairs; they are consumed in order x1, y1, x2, y2, each pair of
   // uniforms (u1, u2) giving sqrt(-2 ln u1) * cos(2 pi u2) then sqrt(-2 ln u1) * sin(2 pi u2).
   bool have_spare = false;
@@ -66,8 +54,8 @@ std::vector<std::array<int8_t, 4>> buildBriefPattern() {
       have_spare = false;
       return spare;
     }
-    const double u1 = rng.uniform();
-    const double u2 = rng.uniform();
+    const double u1 = rng.uniformPositive();  // (0, 1]: log() never sees 0
+    const double u2 = rng.uniformPositive();
     const double radius = std::sqrt(-2.0 * std::log(u1));
     spare = radius * std::sin(kTwoPi * u2);
     have_spare = true;
