@@ -3,6 +3,7 @@
 // tests skip with the reason when ../shared/data is absent; the rendered ones always run.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -112,11 +113,10 @@ TEST(EurocShake, VoteBeatsFivePointWithoutLockIn) {
   expectHonestCovariance(f, "vote");
 }
 
-/// Per axis, the spread (standard deviation over the frames) of vote's per-frame rotation error
-/// against the raw gyro [deg], read from evaluate's per-frame CSV. The gyro's bias is constant
-/// over the few seconds, so it moves the mean error but not its spread.
-std::vector<double> errorSpreadAgainstGyro(const std::string& folder, const std::string& extra) {
-  const std::string csv = visual_gyro::test::makeTempDir("static") + "/frames.csv";
+/// vote's per-frame rotation error vector [deg] (camera axes x, y, z) against the truth, by frame,
+/// read from evaluate's per-frame CSV; frames without a complete error vector are left out.
+std::map<int, std::array<double, 3>> frameErrors(const std::string& folder, const std::string& extra) {
+  const std::string csv = visual_gyro::test::makeTempDir("frames") + "/frames.csv";
   run(std::string(VISUAL_GYRO_EVALUATE) + " " + folder + " --method vote --quiet --csv " + csv + " " + extra);
   std::ifstream in(csv);
   std::string line;
@@ -127,25 +127,84 @@ std::vector<double> errorSpreadAgainstGyro(const std::string& folder, const std:
     for (std::string cell; std::getline(cells, cell, ',');) header.push_back(cell);
   }
   const std::vector<std::string> axes{"err_x_deg", "err_y_deg", "err_z_deg"};
-  std::vector<std::vector<double>> errors(axes.size());
+  std::map<int, std::array<double, 3>> errors;
   while (std::getline(in, line)) {
     std::istringstream cells(line);
     std::vector<std::string> row;
     for (std::string cell; std::getline(cells, cell, ',');) row.push_back(cell);
-    for (size_t a = 0; a < axes.size(); ++a) {
-      for (size_t c = 0; c < header.size() && c < row.size(); ++c)
-        if (header[c] == axes[a] && !row[c].empty()) errors[a].push_back(std::stod(row[c]));
+    std::array<double, 3> e{};
+    int found = 0, frame = -1;
+    for (size_t c = 0; c < header.size() && c < row.size(); ++c) {
+      if (header[c] == "frame") frame = std::stoi(row[c]);
+      for (size_t a = 0; a < axes.size(); ++a)
+        if (header[c] == axes[a] && !row[c].empty()) {
+          e[a] = std::stod(row[c]);
+          ++found;
+        }
     }
+    if (frame >= 0 && found == 3) errors[frame] = e;
   }
-  std::vector<double> spread;
-  for (const std::vector<double>& e : errors) {
-    EXPECT_GT(e.size(), 80u) << "too few per-frame errors in " << csv;
-    double mean = 0.0, square = 0.0;
-    for (double v : e) mean += v / e.size();
-    for (double v : e) square += (v - mean) * (v - mean) / e.size();
-    spread.push_back(std::sqrt(square));
+  EXPECT_FALSE(errors.empty()) << "no per-frame errors in " << csv;
+  return errors;
+}
+
+/// Per axis, the RMS over the frames both runs scored of a[frame] - b[frame] (b empty: of a alone).
+std::vector<double> rmsPerAxis(const std::map<int, std::array<double, 3>>& a,
+                               const std::map<int, std::array<double, 3>>& b = {}) {
+  std::vector<double> square(3, 0.0);
+  int frames = 0;
+  for (const auto& [frame, e] : a) {
+    std::array<double, 3> other{};
+    if (!b.empty()) {
+      const auto it = b.find(frame);
+      if (it == b.end()) continue;
+      other = it->second;
+    }
+    for (int k = 0; k < 3; ++k) square[k] += (e[k] - other[k]) * (e[k] - other[k]);
+    ++frames;
   }
-  return spread;
+  for (double& v : square) v = frames > 0 ? std::sqrt(v / frames) : NAN;
+  return square;
+}
+
+/// Per axis, the spread (standard deviation over the frames) of vote's per-frame rotation error
+/// against the raw gyro [deg]. The gyro's bias is constant over the few seconds, so it moves the
+/// mean error but not its spread.
+std::vector<double> errorSpreadAgainstGyro(const std::string& folder, const std::string& extra) {
+  const std::map<int, std::array<double, 3>> errors = frameErrors(folder, extra);
+  EXPECT_GT(errors.size(), 80u) << "too few per-frame errors on " << folder;
+  std::array<double, 3> mean{};
+  for (const auto& [frame, e] : errors)
+    for (int k = 0; k < 3; ++k) mean[k] += e[k] / errors.size();
+  std::map<int, std::array<double, 3>> centred;
+  for (const auto& [frame, e] : errors) centred[frame] = {e[0] - mean[0], e[1] - mean[1], e[2] - mean[2]};
+  return rmsPerAxis(centred);
+}
+
+// Why the covariance floor is as large as it is, and why sub-pixel positions are not the default
+// yet. On KITTI the per-frame rotation error against the ground-truth poses is common to every
+// front end: vote on sub-pixel positions, on integer positions and on KLT tracks (which share no
+// corner with the native front end) differ from one another by a fraction of their error against
+// the truth, frame by frame. That common part (0.02-0.04 deg per axis, 0.14 deg on the worst
+// frames) is not in the matches, so no residual can show it; it is the truth's own error (or the
+// frame timing's). The constant floor absorbs it on KITTI; on euroc_mh01_shake, whose truth is
+// finer, the same floor exceeds sub-pixel vote's whole error.
+TEST(KittiStraight, ErrorAgainstTheTruthIsCommonToEveryFrontEnd) {
+  std::string why;
+  const std::string folder = sharedOrSkip("kitti_straight", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const auto subpixel = frameErrors(folder, "--set subpixel_refinement=true");
+  const auto integer = frameErrors(folder, "--set subpixel_refinement=false");
+  const auto klt = frameErrors(folder, "--front-end klt");
+  const std::vector<double> truth = rmsPerAxis(subpixel), to_integer = rmsPerAxis(subpixel, integer),
+                            to_klt = rmsPerAxis(subpixel, klt);
+  for (int a = 0; a < 3; ++a) {
+    std::printf("axis %d: sub-pixel vote %.4f deg RMS from the truth, %.4f deg from integer positions, "
+                "%.4f deg from KLT tracks\n",
+                a, truth[a], to_integer[a], to_klt[a]);
+    EXPECT_LE(to_integer[a], 0.4 * truth[a]) << "axis " << a;
+    EXPECT_LE(to_klt[a], 0.4 * truth[a]) << "axis " << a;
+  }
 }
 
 TEST(EurocStatic, NoFalseRotationWhenStandingStill) {
