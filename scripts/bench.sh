@@ -93,7 +93,8 @@ if [[ -f ${OUT}/rendered/forward/poses.txt ]]; then
 fi
 
 # 4b. Front ends on the same frames, vote only: the native front end with guided and with global
-#     matching, the fixed-threshold global front end it replaced (min_fast_threshold = fast_threshold),
+#     matching, the fixed-threshold global front end with integer positions it replaced
+#     (min_fast_threshold = fast_threshold, subpixel_refinement = false),
 #     OpenCV ORB + brute force and KLT; on the shared sequences and on the rendered dim room with
 #     3 px motion blur and JPEG 75 (also evaluated with every method).
 dim_dir="${OUT}/rendered/dim_blur3_jpeg75"
@@ -113,7 +114,8 @@ for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blu
   fi
   run_eval front_end "${name}:guided" 0 "${folder}" --method vote
   run_eval front_end "${name}:global" 0 "${folder}" --method vote --set matching=global
-  run_eval front_end "${name}:fixed_global" 0 "${folder}" --method vote --set matching=global --set min_fast_threshold=20
+  run_eval front_end "${name}:fixed_global" 0 "${folder}" --method vote --set matching=global --set min_fast_threshold=20 \
+    --set subpixel_refinement=false
   run_eval front_end "${name}:orb" 0 "${folder}" --method vote --front-end orb
   run_eval front_end "${name}:klt" 0 "${folder}" --method vote --front-end klt
 done

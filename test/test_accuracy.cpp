@@ -3,6 +3,7 @@
 // tests skip with the reason when ../shared/data is absent; the rendered ones always run.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -112,6 +113,100 @@ TEST(EurocShake, VoteBeatsFivePointWithoutLockIn) {
   expectHonestCovariance(f, "vote");
 }
 
+/// vote's per-frame rotation error vector [deg] (camera axes x, y, z) against the truth, by frame,
+/// read from evaluate's per-frame CSV; frames without a complete error vector are left out.
+std::map<int, std::array<double, 3>> frameErrors(const std::string& folder, const std::string& extra) {
+  const std::string csv = visual_gyro::test::makeTempDir("frames") + "/frames.csv";
+  run(std::string(VISUAL_GYRO_EVALUATE) + " " + folder + " --method vote --quiet --csv " + csv + " " + extra);
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  {
+    std::istringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');) header.push_back(cell);
+  }
+  const std::vector<std::string> axes{"err_x_deg", "err_y_deg", "err_z_deg"};
+  std::map<int, std::array<double, 3>> errors;
+  while (std::getline(in, line)) {
+    std::istringstream cells(line);
+    std::vector<std::string> row;
+    for (std::string cell; std::getline(cells, cell, ',');) row.push_back(cell);
+    std::array<double, 3> e{};
+    int found = 0, frame = -1;
+    for (size_t c = 0; c < header.size() && c < row.size(); ++c) {
+      if (header[c] == "frame") frame = std::stoi(row[c]);
+      for (size_t a = 0; a < axes.size(); ++a)
+        if (header[c] == axes[a] && !row[c].empty()) {
+          e[a] = std::stod(row[c]);
+          ++found;
+        }
+    }
+    if (frame >= 0 && found == 3) errors[frame] = e;
+  }
+  EXPECT_FALSE(errors.empty()) << "no per-frame errors in " << csv;
+  return errors;
+}
+
+/// Per axis, the RMS over the frames both runs scored of a[frame] - b[frame] (b empty: of a alone).
+std::vector<double> rmsPerAxis(const std::map<int, std::array<double, 3>>& a,
+                               const std::map<int, std::array<double, 3>>& b = {}) {
+  std::vector<double> square(3, 0.0);
+  int frames = 0;
+  for (const auto& [frame, e] : a) {
+    std::array<double, 3> other{};
+    if (!b.empty()) {
+      const auto it = b.find(frame);
+      if (it == b.end()) continue;
+      other = it->second;
+    }
+    for (int k = 0; k < 3; ++k) square[k] += (e[k] - other[k]) * (e[k] - other[k]);
+    ++frames;
+  }
+  for (double& v : square) v = frames > 0 ? std::sqrt(v / frames) : NAN;
+  return square;
+}
+
+/// Per axis, the spread (standard deviation over the frames) of vote's per-frame rotation error
+/// against the raw gyro [deg]. The gyro's bias is constant over the few seconds, so it moves the
+/// mean error but not its spread.
+std::vector<double> errorSpreadAgainstGyro(const std::string& folder, const std::string& extra) {
+  const std::map<int, std::array<double, 3>> errors = frameErrors(folder, extra);
+  EXPECT_GT(errors.size(), 80u) << "too few per-frame errors on " << folder;
+  std::array<double, 3> mean{};
+  for (const auto& [frame, e] : errors)
+    for (int k = 0; k < 3; ++k) mean[k] += e[k] / errors.size();
+  std::map<int, std::array<double, 3>> centred;
+  for (const auto& [frame, e] : errors) centred[frame] = {e[0] - mean[0], e[1] - mean[1], e[2] - mean[2]};
+  return rmsPerAxis(centred);
+}
+
+// Why the covariance floor is as large as it is, and why sub-pixel positions are not the default
+// yet. On KITTI the per-frame rotation error against the ground-truth poses is common to every
+// front end: vote on sub-pixel positions, on integer positions and on KLT tracks (which share no
+// corner with the native front end) differ from one another by a fraction of their error against
+// the truth, frame by frame. That common part (0.02-0.04 deg per axis, 0.14 deg on the worst
+// frames) is not in the matches, so no residual can show it; it is the truth's own error (or the
+// frame timing's). The constant floor absorbs it on KITTI; on euroc_mh01_shake, whose truth is
+// finer, the same floor exceeds sub-pixel vote's whole error.
+TEST(KittiStraight, ErrorAgainstTheTruthIsCommonToEveryFrontEnd) {
+  std::string why;
+  const std::string folder = sharedOrSkip("kitti_straight", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const auto subpixel = frameErrors(folder, "--set subpixel_refinement=true");
+  const auto integer = frameErrors(folder, "--set subpixel_refinement=false");
+  const auto klt = frameErrors(folder, "--front-end klt");
+  const std::vector<double> truth = rmsPerAxis(subpixel), to_integer = rmsPerAxis(subpixel, integer),
+                            to_klt = rmsPerAxis(subpixel, klt);
+  for (int a = 0; a < 3; ++a) {
+    std::printf("axis %d: sub-pixel vote %.4f deg RMS from the truth, %.4f deg from integer positions, "
+                "%.4f deg from KLT tracks\n",
+                a, truth[a], to_integer[a], to_klt[a]);
+    EXPECT_LE(to_integer[a], 0.4 * truth[a]) << "axis " << a;
+    EXPECT_LE(to_klt[a], 0.4 * truth[a]) << "axis " << a;
+  }
+}
+
 TEST(EurocStatic, NoFalseRotationWhenStandingStill) {
   std::string why;
   const std::string folder = sharedOrSkip("euroc_v101_static", &why);
@@ -120,6 +215,28 @@ TEST(EurocStatic, NoFalseRotationWhenStandingStill) {
   record(f);
   EXPECT_EQ(f.at("vote.frames"), 94);
   EXPECT_LE(f.at("vote.mean_rate_dps"), 0.3);
+}
+
+// The drone stands on the ground, but the camera is not perfectly still: the gyro sees a
+// vibration of about 0.5 deg/s (0.02 deg per frame) once the frames start. Integer positions
+// round it to zero rotation; sub-pixel match positions resolve it: the estimate follows the gyro
+// frame by frame, apart from the gyro's constant bias, to a hundredth of a degree per axis, and
+// its mean rate is the vibration's size, not a false rotation.
+TEST(EurocStatic, SubpixelPositionsFollowTheVibrationTheGyroSees) {
+  std::string why;
+  const std::string folder = sharedOrSkip("euroc_v101_static", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const Figures f = evaluate(folder, "vote", "--set subpixel_refinement=true");
+  EXPECT_EQ(f.at("vote.frames"), 94);
+  EXPECT_LE(f.at("vote.mean_rate_dps"), 0.6);
+  const std::vector<double> spread = errorSpreadAgainstGyro(folder, "--set subpixel_refinement=true");
+  const std::vector<double> integer = errorSpreadAgainstGyro(folder, "--set subpixel_refinement=false");
+  for (size_t a = 0; a < spread.size(); ++a) {
+    std::printf("axis %zu: error spread against the gyro %.4f deg (integer positions: %.4f deg)\n", a,
+                spread[a], integer[a]);
+    EXPECT_LE(spread[a], 0.01) << "axis " << a;
+    EXPECT_LT(spread[a], integer[a]) << "axis " << a;
+  }
 }
 
 // The CUDA backend's goal: it gives the CPU backend's figures (within 5 %) on every shared
@@ -289,8 +406,9 @@ Figures evaluateVote(const std::string& folder, const std::string& extra) {
   return figures;
 }
 
-/// The front end as it was before adaptive detection and guided matching.
-const char* const kFixedGlobalFrontEnd = "--set matching=global --set min_fast_threshold=20";
+/// The front end as it was before adaptive detection, guided matching and sub-pixel positions.
+const char* const kFixedGlobalFrontEnd =
+    "--set matching=global --set min_fast_threshold=20 --set subpixel_refinement=false";
 
 }  // namespace
 
@@ -340,6 +458,28 @@ TEST(SharedSequences, NativeFrontEndAtLeastAsAccurateAsOrbAndKlt) {
     ++compared;
   }
   if (compared == 0) GTEST_SKIP() << "no shared sequence present under the data folder";
+}
+
+// Sub-pixel match positions on the shaken, blurred drone sequence: integer FAST positions leave
+// about 0.4 px of quantisation noise on every match (0.05 deg at EuRoC's focal length); the
+// alignment removes most of it. Pyramidal LK, sub-pixel by construction, is the yardstick.
+TEST(EurocShake, SubpixelPositionsReduceTheErrorToKltLevel) {
+  std::string why;
+  const std::string folder = sharedOrSkip("euroc_mh01_shake", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  const Figures subpixel = evaluateVote(folder, "--set subpixel_refinement=true");
+  const Figures integer = evaluateVote(folder, "--set subpixel_refinement=false");
+  const Figures klt = evaluateVote(folder, "--front-end klt");
+  std::printf("euroc_mh01_shake: vote RMSE / max %.4f / %.4f deg sub-pixel, %.4f / %.4f deg integer, "
+              "%.4f / %.4f deg on KLT tracks\n",
+              subpixel.at("rot_rmse_deg"), subpixel.at("rot_max_deg"), integer.at("rot_rmse_deg"),
+              integer.at("rot_max_deg"), klt.at("rot_rmse_deg"), klt.at("rot_max_deg"));
+  EXPECT_EQ(subpixel.at("invalid"), 0);
+  EXPECT_LE(subpixel.at("rot_rmse_deg"), 0.6 * integer.at("rot_rmse_deg"));
+  EXPECT_LE(subpixel.at("rot_max_deg"), 0.5 * integer.at("rot_max_deg"));
+  // Not yet at least as accurate as KLT in RMSE (within a quarter), but its worst frame is.
+  EXPECT_LE(subpixel.at("rot_rmse_deg"), 1.25 * klt.at("rot_rmse_deg"));
+  EXPECT_LE(subpixel.at("rot_max_deg"), klt.at("rot_max_deg"));
 }
 
 TEST(RenderedDim, BlurredJpegRoomHasEnoughMatchesForAnAccurateEstimate) {

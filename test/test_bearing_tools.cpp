@@ -107,23 +107,23 @@ TEST(EstimatorComparison, PassesIdenticalRunsAndCatchesDifferentOnes) {
   settings.backend = BackendChoice::kCpu;
   const bearings::EstimatorRun a = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
   const bearings::EstimatorRun b = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
-  ASSERT_EQ(a.frames, 6);
-  EXPECT_EQ(a.with_truth, 6);
-  EXPECT_EQ(a.invalid, 0);
-  EXPECT_LT(a.rot_rmse_deg, 0.1) << "synthetic frames with 20 % outliers: the estimate is accurate";
+  ASSERT_EQ(a.accuracy.frames, 6);
+  EXPECT_EQ(a.accuracy.with_truth, 6);
+  EXPECT_EQ(a.accuracy.invalid, 0);
+  EXPECT_LT(a.accuracy.rot_rmse_deg, 0.1) << "synthetic frames with 20 % outliers: the estimate is accurate";
   const bearings::EstimatorComparison same = bearings::compareEstimatorRuns(a, b);
   EXPECT_TRUE(same.passed());
   EXPECT_EQ(same.max_rotation_difference_deg, 0.0) << "same seed, same backend: identical";
 
   bearings::EstimatorRun worse = b;  // a GPU run 10 % less accurate
-  worse.rot_rmse_deg *= 1.1;
-  worse.rot_rmse_deg += 0.002;
+  worse.accuracy.rot_rmse_deg *= 1.1;
+  worse.accuracy.rot_rmse_deg += 0.002;
   EXPECT_FALSE(bearings::compareEstimatorRuns(a, worse).passed());
   bearings::EstimatorRun lost = b;  // one estimate invalid on the GPU only
-  lost.invalid += 1;
+  lost.accuracy.invalid += 1;
   EXPECT_FALSE(bearings::compareEstimatorRuns(a, lost).passed());
   bearings::EstimatorRun shorter = b;
-  shorter.frames -= 1;
+  shorter.accuracy.frames -= 1;
   EXPECT_FALSE(bearings::compareEstimatorRuns(a, shorter).passed());
 }
 
@@ -159,10 +159,10 @@ TEST(BearingFile, RunFromAnExportedFileReproducesEvaluateFigures) {
     settings.backend = BackendChoice::kCpu;
     ASSERT_TRUE(parseMethod(method, &settings.method));
     const bearings::EstimatorRun run = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
-    EXPECT_EQ(run.invalid, jsonNumber(out, method, "invalid")) << method;
-    for (const auto& [key, value] : {std::pair<const char*, double>{"rot_rmse_deg", run.rot_rmse_deg},
-                                     {"yaw_rmse_deg", run.yaw_rmse_deg},
-                                     {"mean_rate_dps", run.mean_rate_dps}}) {
+    EXPECT_EQ(run.accuracy.invalid, jsonNumber(out, method, "invalid")) << method;
+    for (const auto& [key, value] : {std::pair<const char*, double>{"rot_rmse_deg", run.accuracy.rot_rmse_deg},
+                                     {"yaw_rmse_deg", run.accuracy.yaw_rmse_deg},
+                                     {"mean_rate_dps", run.accuracy.mean_rate_dps}}) {
       const double expected = jsonNumber(out, method, key);
       ASSERT_FALSE(std::isnan(expected)) << method << " " << key << " missing in:\n" << out;
       EXPECT_NEAR(value, expected, 0.01 * std::abs(expected) + 1e-4) << method << " " << key;

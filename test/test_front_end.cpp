@@ -423,5 +423,126 @@ TEST(FrontEnd, KittiFramePairTiming) {
   EXPECT_GE(matches.size(), 300u);
 }
 
+/// Smooth analytic texture sampled at (x - shift_x, y - shift_y): its content moved by the shift,
+/// exactly, at any sub-pixel shift (no resampling of a rendered image). Gaussian blobs of 2-5 px at
+/// fixed random places, so there are corners everywhere.
+cv::Mat shiftedBlobs(int width, int height, double shift_x, double shift_y) {
+  cv::RNG rng(7);
+  struct Blob {
+    double x, y, sigma, amplitude;
+  };
+  std::vector<Blob> blobs(width * height / 150);
+  for (Blob& b : blobs) {
+    b = {rng.uniform(0.0, double(width)), rng.uniform(0.0, double(height)), rng.uniform(2.0, 5.0),
+         rng.uniform(-90.0, 90.0)};
+  }
+  cv::Mat_<float> value(height, width, 128.f);
+  for (const Blob& b : blobs) {
+    const int r = static_cast<int>(std::ceil(3 * b.sigma));
+    for (int y = std::max(0, int(b.y) - r); y < std::min(height, int(b.y) + r + 2); ++y) {
+      for (int x = std::max(0, int(b.x) - r); x < std::min(width, int(b.x) + r + 2); ++x) {
+        const double dx = x - shift_x - b.x, dy = y - shift_y - b.y;
+        value(y, x) += static_cast<float>(b.amplitude * std::exp(-(dx * dx + dy * dy) / (2 * b.sigma * b.sigma)));
+      }
+    }
+  }
+  cv::Mat image;
+  value.convertTo(image, CV_8UC1);  // rounds and saturates
+  return image;
+}
+
+/// Matches i -> i between the corners of `previous` and the same corners moved by the integer
+/// part of the true shift (what descriptor matching would give), then refined.
+struct RefinedShift {
+  size_t matches = 0, refined = 0;
+  double median_error = 0.0;  // px, |refined displacement - true shift|
+  double mean_x = 0.0, mean_y = 0.0;
+};
+
+RefinedShift refineKnownShift(const FeatureFrontEnd& front_end, double shift_x, double shift_y) {
+  const cv::Mat previous_image = shiftedBlobs(320, 240, 0.0, 0.0);
+  const cv::Mat current_image = shiftedBlobs(320, 240, shift_x, shift_y);
+  FrameFeatures previous, current;
+  previous.keypoints = front_end.detect(previous_image);
+  previous.descriptors.resize(previous.keypoints.size());
+  for (const cv::Point2f& p : previous.keypoints) {
+    current.keypoints.emplace_back(p.x + std::round(shift_x), p.y + std::round(shift_y));
+  }
+  current.descriptors.resize(current.keypoints.size());
+  std::vector<FeatureMatch> matches;
+  for (int i = 0; i < static_cast<int>(previous.keypoints.size()); ++i) matches.push_back({i, i, 0});
+  front_end.refineMatches(previous_image, current_image, previous, current, &matches);
+  RefinedShift out;
+  out.matches = matches.size();
+  std::vector<double> errors;
+  for (const FeatureMatch& m : matches) {
+    if (m.offset.x == 0.f && m.offset.y == 0.f) continue;
+    ++out.refined;
+    const cv::Point2f moved = current.keypoints[m.current] + m.offset - previous.keypoints[m.previous];
+    errors.push_back(std::hypot(moved.x - shift_x, moved.y - shift_y));
+    out.mean_x += moved.x;
+    out.mean_y += moved.y;
+  }
+  if (out.refined > 0) {
+    out.mean_x /= out.refined;
+    out.mean_y /= out.refined;
+    std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+    out.median_error = errors[errors.size() / 2];
+  }
+  return out;
+}
+
+// Integer positions are off by up to half a pixel; the alignment recovers the true sub-pixel
+// displacement of each corner (including the integer part found by matching).
+TEST(SubpixelRefinement, RecoversKnownSubpixelShift) {
+  FrontEndSettings settings;
+  settings.subpixel_refinement = true;
+  const FeatureFrontEnd front_end(settings);
+  for (const cv::Point2d shift : {cv::Point2d(0.3, -0.4), cv::Point2d(-0.45, 0.2), cv::Point2d(2.35, 1.6)}) {
+    const RefinedShift r = refineKnownShift(front_end, shift.x, shift.y);
+    std::printf("shift (%.2f, %.2f): %zu of %zu matches refined, median error %.3f px, mean (%.3f, %.3f)\n",
+                shift.x, shift.y, r.refined, r.matches, r.median_error, r.mean_x, r.mean_y);
+    ASSERT_GE(r.matches, 100u);
+    EXPECT_GE(r.refined, r.matches * 8 / 10);
+    // Integer positions would leave a median error of |fractional shift| (0.2 to 0.5 px here).
+    EXPECT_LE(r.median_error, 0.05);
+    EXPECT_NEAR(r.mean_x, shift.x, 0.02);
+    EXPECT_NEAR(r.mean_y, shift.y, 0.02);
+  }
+}
+
+TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {
+  FrontEndSettings settings;
+  settings.subpixel_refinement = false;
+  const FeatureFrontEnd off(settings);
+  const RefinedShift r = refineKnownShift(off, 0.3, -0.4);
+  EXPECT_GE(r.matches, 100u);
+  EXPECT_EQ(r.refined, 0u);
+
+  // A flat patch has no structure to align: the match keeps its integer position.
+  settings.subpixel_refinement = true;
+  const FeatureFrontEnd on(settings);
+  const cv::Mat flat(100, 100, CV_8UC1, cv::Scalar(90));
+  FrameFeatures a, b;
+  a.keypoints = {cv::Point2f(50, 50)};
+  b.keypoints = {cv::Point2f(50, 50)};
+  a.descriptors.resize(1);
+  b.descriptors.resize(1);
+  std::vector<FeatureMatch> matches{{0, 0, 0}};
+  matches[0].offset = cv::Point2f(3.f, 3.f);  // reset by the call
+  on.refineMatches(flat, flat, a, b, &matches);
+  EXPECT_EQ(matches[0].offset, cv::Point2f(0.f, 0.f));
+  // Near the border: no refinement, no out-of-bounds read.
+  a.keypoints = {cv::Point2f(2, 2)};
+  b.keypoints = {cv::Point2f(97, 97)};
+  on.refineMatches(shiftedBlobs(100, 100, 0, 0), shiftedBlobs(100, 100, 0, 0), a, b, &matches);
+  EXPECT_EQ(matches[0].offset, cv::Point2f(0.f, 0.f));
+
+  EXPECT_THROW(on.refineMatches(flat, cv::Mat(), a, b, &matches), std::invalid_argument);
+  EXPECT_THROW(on.refineMatches(flat, cv::Mat(50, 50, CV_8UC1), a, b, &matches), std::invalid_argument);
+  cv::Mat colour(100, 100, CV_8UC3);
+  EXPECT_THROW(on.refineMatches(flat, colour, a, b, &matches), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace visual_gyro

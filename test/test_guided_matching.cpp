@@ -16,6 +16,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "test_support.h"
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/renderer.h"
 #include "visual_gyro/visual_gyro.h"
@@ -26,16 +27,9 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-vg::RenderSettings roomScene() {
-  vg::RenderSettings s;
-  s.preset = vg::RenderPreset::kHandheld;
-  s.setCentredCamera(480, 360, 380.0);
-  return s;
-}
+using vg::test::cameraOf;
 
-vg::CameraModel cameraOf(const vg::RenderSettings& s) {
-  return vg::CameraModel(s.fx, s.fy, s.cx, s.cy, s.width, s.height);
-}
+vg::RenderSettings roomScene() { return vg::test::handheldRoom(480, 360, 380.0); }
 
 Eigen::Matrix3d yawPitch(double yaw_deg, double pitch_deg) {
   return (Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitY()) *

@@ -6,6 +6,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "test_support.h"
 #include "visual_gyro/renderer.h"
 #include "visual_gyro/visual_gyro.h"
 
@@ -15,22 +16,10 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-vg::RenderSettings smallScene() {
-  vg::RenderSettings s;
-  s.preset = vg::RenderPreset::kHandheld;
-  s.setCentredCamera(480, 360, 380.0);
-  return s;
-}
+using vg::test::cameraOf;
+using vg::test::cpuSettings;
 
-vg::CameraModel cameraOf(const vg::RenderSettings& s) {
-  return vg::CameraModel(s.fx, s.fy, s.cx, s.cy, s.width, s.height);
-}
-
-vg::VisualGyroSettings cpuSettings() {
-  vg::VisualGyroSettings s;
-  s.estimator.backend = vg::BackendChoice::kCpu;
-  return s;
-}
+vg::RenderSettings smallScene() { return vg::test::handheldRoom(480, 360, 380.0); }
 
 }  // namespace
 

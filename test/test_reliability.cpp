@@ -23,9 +23,7 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 
 vg::RenderSettings scene() {
-  vg::RenderSettings s;
-  s.preset = vg::RenderPreset::kHandheld;
-  s.setCentredCamera(320, 240, 250.0);
+  vg::RenderSettings s = vg::test::handheldRoom(320, 240, 250.0);
   s.noise_sigma = 1.0;
   return s;
 }
@@ -35,16 +33,9 @@ cv::Mat view(double yaw_deg) {
                         Eigen::Vector3d::Zero());
 }
 
-vg::CameraModel camera() {
-  const vg::RenderSettings s = scene();
-  return vg::CameraModel(s.fx, s.fy, s.cx, s.cy, s.width, s.height);
-}
+vg::CameraModel camera() { return vg::test::cameraOf(scene()); }
 
-vg::VisualGyroSettings cpu() {
-  vg::VisualGyroSettings s;
-  s.estimator.backend = vg::BackendChoice::kCpu;
-  return s;
-}
+vg::VisualGyroSettings cpu() { return vg::test::cpuSettings(); }
 
 bool contains(const std::string& text, const std::string& needle) { return text.find(needle) != std::string::npos; }
 

@@ -145,6 +145,13 @@ TEST(SettingsConsistency, TableCfgYamlAndReadmeAgree) {
   }
 }
 
+TEST(SettingsConsistency, ReadmeTableIsTheTablesOutput) {
+  const std::string readme = readAll(repo() / "README.md");
+  const std::string table = vg::settingsMarkdownTable();
+  EXPECT_NE(readme.find(table), std::string::npos)
+      << "the README's settings table differs from `evaluate --settings-table`:\n" << table;
+}
+
 TEST(SettingsConsistency, NodeSettingsInTheCfgAreInTheYamlAndReadme) {
   const auto yaml = yamlValues();
   const std::string readme = readAll(repo() / "README.md");

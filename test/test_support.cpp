@@ -12,6 +12,23 @@
 namespace visual_gyro {
 namespace test {
 
+RenderSettings handheldRoom(int width, int height, double focal) {
+  RenderSettings s;
+  s.preset = RenderPreset::kHandheld;
+  s.setCentredCamera(width, height, focal);
+  return s;
+}
+
+CameraModel cameraOf(const RenderSettings& scene) {
+  return CameraModel(scene.fx, scene.fy, scene.cx, scene.cy, scene.width, scene.height);
+}
+
+VisualGyroSettings cpuSettings() {
+  VisualGyroSettings s;
+  s.estimator.backend = BackendChoice::kCpu;
+  return s;
+}
+
 std::string sharedDataDir() {
   const char* env = std::getenv("VISUAL_GYRO_DATA");
   if (env != nullptr && *env != '\0') return env;

@@ -3,8 +3,19 @@
 
 #include <string>
 
+#include "visual_gyro/camera_model.h"
+#include "visual_gyro/renderer.h"
+#include "visual_gyro/visual_gyro.h"
+
 namespace visual_gyro {
 namespace test {
+
+/// The hand-held room preset rendered at width x height with focal length `focal` [px], centred.
+RenderSettings handheldRoom(int width, int height, double focal);
+/// The pinhole camera of rendered views (no distortion).
+CameraModel cameraOf(const RenderSettings& scene);
+/// Default pipeline settings on the CPU backend (the tests' figures must not depend on a GPU).
+VisualGyroSettings cpuSettings();
 
 /// Folder of the shared real sequences: $VISUAL_GYRO_DATA, else ../shared/data beside the repo.
 std::string sharedDataDir();

@@ -43,7 +43,8 @@ void printRun(const EstimatorRun& r) {
   if (r.backend == "cuda") std::snprintf(kernels, sizeof kernels, "%.3f", medianOf(r.vote_device_ms));
   std::printf("  %-5s frames %4d invalid %3d  rot RMSE %8.4f max %8.4f  yaw RMSE %8.4f deg  rate %8.3f deg/s"
               "  | ms median: estimate %7.3f vote %7.3f (kernels %s) host %7.3f\n",
-              r.backend.c_str(), r.frames, r.invalid, r.rot_rmse_deg, r.rot_max_deg, r.yaw_rmse_deg, r.mean_rate_dps,
+              r.backend.c_str(), r.accuracy.frames, r.accuracy.invalid, r.accuracy.rot_rmse_deg, r.accuracy.rot_max_deg,
+              r.accuracy.yaw_rmse_deg, r.accuracy.mean_rate_dps,
               medianOf(r.estimate_ms), medianOf(r.vote_ms), kernels, medianOf(r.refine_ms));
 }
 
@@ -155,9 +156,9 @@ int main(int argc, char** argv) {
       }
       if (csv) {
         for (const EstimatorRun* r : {&cpu_run, &gpu_run}) {
-          if (r->frames == 0) continue;
-          csv << path << ',' << method << ',' << r->backend << ',' << r->frames << ',' << r->invalid << ','
-              << r->rot_rmse_deg << ',' << r->rot_max_deg << ',' << r->yaw_rmse_deg << ',' << r->mean_rate_dps << ','
+          if (r->accuracy.frames == 0) continue;
+          csv << path << ',' << method << ',' << r->backend << ',' << r->accuracy.frames << ',' << r->accuracy.invalid << ','
+              << r->accuracy.rot_rmse_deg << ',' << r->accuracy.rot_max_deg << ',' << r->accuracy.yaw_rmse_deg << ',' << r->accuracy.mean_rate_dps << ','
               << medianOf(r->estimate_ms) << ',' << medianOf(r->vote_ms) << ',' << medianOf(r->vote_device_ms) << ','
               << medianOf(r->refine_ms) << ',' << (gpu ? (ok ? 1 : 0) : -1) << '\n';
         }

@@ -31,13 +31,8 @@ constexpr double kDefaultFrameInterval = 0.1;
 /// One backend's run of the estimator over a sequence of frames.
 struct EstimatorRun {
   std::string backend;  ///< backend that voted ("cpu" or "cuda")
-  int frames = 0;
-  int invalid = 0;      ///< invalid estimates (counted as identity in the errors, as evaluate does)
-  int with_truth = 0;   ///< frames with a true rotation
-  double rot_rmse_deg = std::numeric_limits<double>::quiet_NaN();  ///< angle of R_est^T R_true
-  double rot_max_deg = std::numeric_limits<double>::quiet_NaN();
-  double yaw_rmse_deg = std::numeric_limits<double>::quiet_NaN();
-  double mean_rate_dps = 0.0;  ///< mean |rotation vector| / dt [deg/s]
+  /// The figures, as evaluate computes them (invalid estimates count as identity).
+  metrics::AccuracySummary accuracy;
   std::vector<Eigen::Matrix3d> rotations;  ///< per frame (identity when invalid)
   std::vector<char> valid;
   /// Per-frame times [ms]: whole estimate, voter call, its GPU kernels, host part after the vote.
@@ -85,14 +80,7 @@ inline EstimatorRun runEstimator(RotationEstimator* estimator, const std::vector
     run.vote_device_ms.push_back(r.times.vote_device);
     run.refine_ms.push_back(r.times.refine);
   }
-  const metrics::AccuracySummary summary = accuracy.summary();
-  run.frames = summary.frames;
-  run.invalid = summary.invalid;
-  run.with_truth = summary.with_truth;
-  run.rot_rmse_deg = summary.rot_rmse_deg;
-  run.rot_max_deg = summary.rot_max_deg;
-  run.yaw_rmse_deg = summary.yaw_rmse_deg;
-  if (summary.frames > 0) run.mean_rate_dps = summary.mean_rate_dps;
+  run.accuracy = accuracy.summary();
   return run;
 }
 
@@ -119,28 +107,28 @@ struct EstimatorComparison {
 inline EstimatorComparison compareEstimatorRuns(const EstimatorRun& reference, const EstimatorRun& other,
                                                 double relative = 0.05, double absolute = 1e-3) {
   EstimatorComparison c;
-  if (reference.frames != other.frames) {
-    c.problems.push_back("frames " + std::to_string(other.frames) + " vs " + std::to_string(reference.frames));
+  if (reference.accuracy.frames != other.accuracy.frames) {
+    c.problems.push_back("frames " + std::to_string(other.accuracy.frames) + " vs " + std::to_string(reference.accuracy.frames));
     return c;
   }
-  for (int f = 0; f < reference.frames; ++f) {
+  for (int f = 0; f < reference.accuracy.frames; ++f) {
     c.max_rotation_difference_deg = std::max(
         c.max_rotation_difference_deg,
         rotationAngleBetween(reference.rotations[f], other.rotations[f]) * kRadToDeg);
     c.validity_differs += reference.valid[f] != other.valid[f];
   }
-  if (reference.invalid != other.invalid)
-    c.problems.push_back("invalid estimates " + std::to_string(other.invalid) + " vs " +
-                         std::to_string(reference.invalid));
+  if (reference.accuracy.invalid != other.accuracy.invalid)
+    c.problems.push_back("invalid estimates " + std::to_string(other.accuracy.invalid) + " vs " +
+                         std::to_string(reference.accuracy.invalid));
   auto check = [&](const char* name, double ref, double value) {
     if (std::isnan(ref) && std::isnan(value)) return;
     if (!(std::fabs(value - ref) <= relative * std::fabs(ref) + absolute))
       c.problems.push_back(std::string(name) + " " + std::to_string(value) + " vs " + std::to_string(ref));
   };
-  check("rot_rmse_deg", reference.rot_rmse_deg, other.rot_rmse_deg);
-  check("rot_max_deg", reference.rot_max_deg, other.rot_max_deg);
-  check("yaw_rmse_deg", reference.yaw_rmse_deg, other.yaw_rmse_deg);
-  check("mean_rate_dps", reference.mean_rate_dps, other.mean_rate_dps);
+  check("rot_rmse_deg", reference.accuracy.rot_rmse_deg, other.accuracy.rot_rmse_deg);
+  check("rot_max_deg", reference.accuracy.rot_max_deg, other.accuracy.rot_max_deg);
+  check("yaw_rmse_deg", reference.accuracy.yaw_rmse_deg, other.accuracy.yaw_rmse_deg);
+  check("mean_rate_dps", reference.accuracy.mean_rate_dps, other.accuracy.mean_rate_dps);
   return c;
 }
 

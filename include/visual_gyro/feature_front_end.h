@@ -50,6 +50,11 @@ struct FrontEndSettings {
   double guided_radius_growth = 0.1;
   /// Guided matching with fewer matches than this falls back to global matching.
   int guided_min_matches = 30;
+  /// Sub-pixel match positions: each match's current corner is moved by a translational
+  /// Lucas-Kanade alignment of the previous corner's patch (refineMatches()). Off: integer
+  /// FAST positions. Off by default: the estimator's covariance model is calibrated on integer
+  /// positions (see the README's front-end section).
+  bool subpixel_refinement = false;
 };
 
 /// Every front-end setting with its range, unit and doc (see setting_field.h).
@@ -77,7 +82,13 @@ struct FeatureMatch {
   int previous = -1;
   int current = -1;
   int distance = 0;  ///< Hamming distance
+  /// Sub-pixel correction set by refineMatches(): the matched current position is
+  /// current keypoint + offset (zero when not refined).
+  cv::Point2f offset{0.f, 0.f};
 };
+
+/// Half size of the patch that refineMatches() aligns (an 11 x 11 window).
+constexpr int kRefineHalfWindow = 5;
 
 /// Number of differing bits.
 int hammingDistance(const BriefDescriptor& a, const BriefDescriptor& b);
@@ -133,6 +144,19 @@ class FeatureFrontEnd {
   /// the window, and mutual best over the previous keypoints whose windows hold the current one.
   void matchGuided(const FrameFeatures& previous, const FrameFeatures& current,
                    const MatchPrediction& prediction, std::vector<FeatureMatch>* matches) const;
+
+  /// Sub-pixel refinement of matches (when settings().subpixel_refinement; otherwise every offset
+  /// is set to zero). For each match, the (2 kRefineHalfWindow + 1)^2 patch of `previous_gray`
+  /// around the previous keypoint is aligned with `current_gray` near the current keypoint by
+  /// inverse-compositional Lucas-Kanade (translation, brightness offset removed, bilinear sampling,
+  /// at most 4 iterations), so that current keypoint + offset is where the previous keypoint's
+  /// content lies, to a fraction of a pixel. A match keeps offset zero when the patch has no
+  /// corner structure (aperture problem), leaves the image, or the alignment moves it by more
+  /// than one pixel (it did not converge to the detected corner). Both images are CV_8UC1 of
+  /// one size (std::invalid_argument otherwise).
+  void refineMatches(const cv::Mat& previous_gray, const cv::Mat& current_gray,
+                     const FrameFeatures& previous, const FrameFeatures& current,
+                     std::vector<FeatureMatch>* matches) const;
 
   const FrontEndSettings& settings() const { return settings_; }
   void setSettings(const FrontEndSettings& settings) { settings_ = settings; }

@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <utility>
 
 namespace visual_gyro {
 
@@ -31,6 +33,12 @@ class SplitMix64 {
   double logUniform(double lo, double hi) { return lo * std::exp(std::log(hi / lo) * uniform()); }
   /// Uniform integer in [0, n), n > 0 (multiply-shift: no modulo bias worth mentioning for n << 2^32).
   uint64_t below(uint64_t n) { return static_cast<uint64_t>((static_cast<unsigned __int128>(next()) * n) >> 64); }
+  /// Shuffles a random-access container in place (Fisher-Yates; the same order everywhere).
+  template <class Container>
+  void shuffle(Container& items) {
+    using std::swap;
+    for (size_t i = items.size(); i > 1; --i) swap(items[i - 1], items[below(i)]);
+  }
   /// Standard normal (Box-Muller; both outputs are used, one per call).
   double normal() {
     if (has_spare_) {

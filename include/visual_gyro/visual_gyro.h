@@ -81,6 +81,10 @@ const SettingField<VisualGyroSettings>* findSetting(const std::string& name);
 /// rules (validateVisualGyroSettings) are checked by the caller once all settings are applied.
 std::string applySetting(VisualGyroSettings* settings, const std::string& name, const std::string& value);
 
+/// The settings as the README's Markdown table (name, default, accepted values, meaning), one row
+/// per setting in table order: `evaluate --settings-table` prints it.
+std::string settingsMarkdownTable();
+
 /// "" when the settings are usable: every setting in its range and the estimator's combined rules
 /// (validateSettings) hold; else a message naming the setting.
 std::string validateVisualGyroSettings(const VisualGyroSettings& settings);

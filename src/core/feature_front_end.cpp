@@ -1,5 +1,6 @@
 // FAST corners with grid bucketing, BRIEF-256 descriptors and brute-force Hamming matching.
 #include "visual_gyro/feature_front_end.h"
+#include "visual_gyro/random.h"
 
 #include <algorithm>
 #include <cmath>
@@ -36,27 +37,14 @@ void checkSettings(const FrontEndSettings& settings) {
   if (!why.empty()) throw std::invalid_argument("FeatureFrontEnd: " + why);
 }
 
-/// splitmix64 (Steele, Lea, Flood 2014): tiny, well mixed and fully specified, so the BRIEF
-/// pattern is the same wherever it is built.
-struct SplitMix64 {
-  uint64_t state;
-  uint64_t next() {
-    uint64_t z = (state += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-  }
-  /// Uniform in (0, 1]: the top 53 bits, shifted by one so that log() never sees 0.
-  double uniform() { return (static_cast<double>(next() >> 11) + 1.0) * 0x1.0p-53; }
-};
-
 std::vector<std::array<int8_t, 4>> buildBriefPattern() {
   // Calonder et al. 2010, "G II": both points drawn i.i.d. from an isotropic Gaussian with
   // sigma^2 = S^2 / 25 for a patch of size S = 31.
   constexpr double kSigma = 31.0 / 5.0;
   constexpr uint64_t kSeed = 0x62726965665F5F31ULL;  // "brief__1"
   constexpr double kTwoPi = 6.283185307179586476925286766559;
-  SplitMix64 rng{kSeed};
+  // The package's generator: fully specified, so the pattern is the same wherever it is built.
+  SplitMix64 rng(kSeed);
   // Box-Muller produces normals in pairs; they are consumed in order x1, y1, x2, y2, each pair of
   // uniforms (u1, u2) giving sqrt(-2 ln u1) * cos(2 pi u2) then sqrt(-2 ln u1) * sin(2 pi u2).
   bool have_spare = false;
@@ -66,8 +54,8 @@ std::vector<std::array<int8_t, 4>> buildBriefPattern() {
       have_spare = false;
       return spare;
     }
-    const double u1 = rng.uniform();
-    const double u2 = rng.uniform();
+    const double u1 = rng.uniformPositive();  // (0, 1]: log() never sees 0
+    const double u2 = rng.uniformPositive();
     const double radius = std::sqrt(-2.0 * std::log(u1));
     spare = radius * std::sin(kTwoPi * u2);
     have_spare = true;
@@ -213,19 +201,15 @@ __attribute__((always_inline)) inline void guidedKernel(
           const int hamming = __builtin_popcountll(a0 ^ b[0]) + __builtin_popcountll(a1 ^ b[1]) +
                               __builtin_popcountll(a2 ^ b[2]) + __builtin_popcountll(a3 ^ b[3]);
           const int d = dx * dx + dy * dy > r2 ? std::numeric_limits<int>::max() : hamming;
-          if (d < second) {
-            if (d < best) {
-              second = best;
-              best = d;
-              best_k = k;
-            } else {
-              second = d;
-            }
-          }
-          if (d < col_best_d[k]) {
-            col_best_d[k] = d;
-            col_best[k] = i;
-          }
+          // Branch-free bookkeeping (the same result as the branches in bruteForceKernel: the
+          // first of equal distances stays best): which candidate wins is data-dependent and
+          // about as unpredictable as a coin, so compares and selects beat branches here.
+          second = std::min(second, std::max(best, d));
+          best_k = d < best ? k : best_k;
+          best = std::min(best, d);
+          const int old_d = col_best_d[k];
+          col_best[k] = d < old_d ? i : col_best[k];
+          col_best_d[k] = std::min(old_d, d);
         }
       }
     }
@@ -294,20 +278,27 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
       intField<S>("grid_rows", &S::grid_rows, 1, 64, "", "bucketing grid rows"),
       doubleField<S>("smoothing_sigma", &S::smoothing_sigma, 0.0, 20.0, "px",
                      "Gaussian smoothing before BRIEF (0: none)"),
-      doubleField<S>("max_ratio", &S::max_ratio, 0.01, 1.0, "", "ratio test: best / second-best distance below this"),
+      doubleField<S>("max_ratio", &S::max_ratio, 0.01, 1.0, "", "ratio test: best / second-best Hamming distance below this"),
       intField<S>("max_hamming", &S::max_hamming, 0, 256, "bits", "largest Hamming distance of a match"),
       boolField<S>("cross_check", &S::cross_check, "keep only mutual best matches"),
       intField<S>("min_fast_threshold", &S::min_fast_threshold, 1, 254, "grey levels",
-                  "FAST threshold floor for grid cells short of corners"),
+                  "adaptive detection: when the corners at `fast_threshold` cannot fill `max_features`, every "
+                  "grid cell short of its share is detected again at this threshold (at or above "
+                  "`fast_threshold`: off)"),
       enumField<S, MatchingMode>("matching", &S::matching,
                                  {{"guided", MatchingMode::kGuided}, {"global", MatchingMode::kGlobal}},
-                                 "guided by the rotation prior, or global"),
+                                 "`guided`: search each corner's match only near where the rotation prior puts it (global when "
+                                 "there is no prior or too few are found); `global`: every descriptor against every other"),
       doubleField<S>("guided_radius_px", &S::guided_radius_px, 1.0, 10000.0, "px",
                      "guided search radius before the parallax and prior-uncertainty terms"),
       doubleField<S>("guided_radius_growth", &S::guided_radius_growth, 0.0, 10.0, "px/px",
-                     "guided radius growth per px of distance from the principal point"),
+                     "guided radius growth per pixel of distance from the principal point (parallax of near "
+                     "points under forward motion)"),
       intField<S>("guided_min_matches", &S::guided_min_matches, 0, 100000, "",
                   "fewer guided matches fall back to global matching"),
+      boolField<S>("subpixel_refinement", &S::subpixel_refinement,
+                   "sub-pixel match positions: the previous corner's 11 x 11 patch aligned with the current image "
+                   "by Lucas-Kanade (translation); off: integer FAST positions"),
   };
   return fields;
 }
@@ -665,6 +656,135 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
          w.col_best_d.data());
   collectMatches(settings_, n_prev, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
                  w.col_best.data(), w.grid_items.data(), matches);
+}
+
+void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat& current_gray,
+                                    const FrameFeatures& previous, const FrameFeatures& current,
+                                    std::vector<FeatureMatch>* matches) const {
+  checkSettings(settings_);
+  checkFeatures(previous, current, "refineMatches");
+  for (FeatureMatch& m : *matches) m.offset = cv::Point2f(0.f, 0.f);
+  if (!settings_.subpixel_refinement || matches->empty()) return;
+  checkImage(previous_gray, "refineMatches");
+  checkImage(current_gray, "refineMatches");
+  if (previous_gray.size() != current_gray.size()) {
+    throw std::invalid_argument("FeatureFrontEnd::refineMatches: the images differ in size");
+  }
+  const int width = current_gray.cols, height = current_gray.rows;
+  constexpr int h = kRefineHalfWindow, side = 2 * h + 1, n = side * side;
+  // Rows are padded to a multiple of 4 floats (zero gradients in the padding), so the per-row
+  // loops have a fixed length the compiler turns into vector code; sums over a row are kept per
+  // column and added up once per iteration.
+  constexpr int stride = (side + 3) / 4 * 4;
+  constexpr int kIterations = 4;
+  constexpr float kConverged = 0.01f;  // px: an update this small ends the iterations
+  constexpr float kMaxShift = 1.0f;    // px: a larger correction is not the detected corner
+  // The current pixels the iterations can sample (|d| <= kMaxShift, plus one for the bilinear
+  // neighbour, plus the padding), converted to float once per match.
+  constexpr int reach = h + 2, span = stride + 4;
+  // Template, its gradients and the inverse of the Gauss-Newton matrix, once per match
+  // (inverse compositional: the template's gradients serve every iteration).
+  alignas(16) std::array<float, side * stride> templ, gx, gy;
+  alignas(16) std::array<float, (2 * reach + 1) * span> window;
+  alignas(16) std::array<float, stride> acc_x, acc_y;
+  for (FeatureMatch& m : *matches) {
+    const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
+    const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
+    const int qx = static_cast<int>(std::lround(q.x)), qy = static_cast<int>(std::lround(q.y));
+    // Template pixels and their central differences inside the image; the current window, shifted
+    // by up to kMaxShift and sampled bilinearly, too (the padding columns are read as well).
+    if (px - h - 1 < 0 || py - h - 1 < 0 || px + h + 1 >= width || py + h + 1 >= height ||
+        qx - reach < 0 || qy - reach < 0 || qx - reach + span > width || qy + reach >= height) {
+      continue;
+    }
+    float gx_mean = 0.f, gy_mean = 0.f;
+    for (int v = 0; v < side; ++v) {
+      const uint8_t* row = previous_gray.ptr<uint8_t>(py - h + v) + px - h;
+      const uint8_t* up = previous_gray.ptr<uint8_t>(py - h + v - 1) + px - h;
+      const uint8_t* down = previous_gray.ptr<uint8_t>(py - h + v + 1) + px - h;
+      float* t = &templ[v * stride];
+      float* ex = &gx[v * stride];
+      float* ey = &gy[v * stride];
+      for (int u = 0; u < side; ++u) {
+        t[u] = row[u];
+        ex[u] = 0.5f * (static_cast<float>(row[u + 1]) - static_cast<float>(row[u - 1]));
+        ey[u] = 0.5f * (static_cast<float>(down[u]) - static_cast<float>(up[u]));
+        gx_mean += ex[u];
+        gy_mean += ey[u];
+      }
+    }
+    // The brightness offset between the frames is removed from the residual (its mean), which
+    // projects it out of the gradients as well: zero-mean gradients in the normal equations.
+    gx_mean /= n;
+    gy_mean /= n;
+    float hxx = 0.f, hxy = 0.f, hyy = 0.f;
+    for (int v = 0; v < side; ++v) {
+      for (int u = 0; u < stride; ++u) {
+        float& ex = gx[v * stride + u];
+        float& ey = gy[v * stride + u];
+        if (u < side) {
+          ex -= gx_mean;
+          ey -= gy_mean;
+        } else {
+          ex = ey = templ[v * stride + u] = 0.f;
+        }
+        hxx += ex * ex;
+        hxy += ex * ey;
+        hyy += ey * ey;
+      }
+    }
+    // Corner structure: both eigenvalues of the structure tensor well above zero. An edge (one
+    // small eigenvalue) leaves the position along it undetermined: no refinement.
+    const float det = hxx * hyy - hxy * hxy, trace = hxx + hyy;
+    if (!(trace > 0.f) || !(det > 0.01f * trace * trace)) continue;
+    const float ixx = hyy / det, ixy = -hxy / det, iyy = hxx / det;
+
+    for (int v = 0; v <= 2 * reach; ++v) {
+      const uint8_t* row = current_gray.ptr<uint8_t>(qy - reach + v) + qx - reach;
+      for (int u = 0; u < span; ++u) window[v * span + u] = row[u];
+    }
+    // Shift d of the current window: current content at q + d matches the template at p.
+    float dx = 0.f, dy = 0.f;
+    bool ok = true;
+    for (int it = 0; it < kIterations; ++it) {
+      const int ox = static_cast<int>(std::floor(dx)), oy = static_cast<int>(std::floor(dy));
+      const float fx = dx - ox, fy = dy - oy;
+      acc_x.fill(0.f);
+      acc_y.fill(0.f);
+      for (int v = 0; v < side; ++v) {
+        // Template row v (offset -h) against the current window at offset -h + d.
+        const float* r0 = &window[(v + oy + reach - h) * span + ox + reach - h];
+        const float* r1 = r0 + span;
+        const float* t = &templ[v * stride];
+        const float* ex = &gx[v * stride];
+        const float* ey = &gy[v * stride];
+        for (int u = 0; u < stride; ++u) {
+          const float top = r0[u] + fx * (r0[u + 1] - r0[u]);
+          const float bottom = r1[u] + fx * (r1[u + 1] - r1[u]);
+          const float e = top + fy * (bottom - top) - t[u];
+          acc_x[u] += ex[u] * e;
+          acc_y[u] += ey[u] * e;
+        }
+      }
+      float bx = 0.f, by = 0.f;
+      for (int u = 0; u < stride; ++u) {
+        bx += acc_x[u];
+        by += acc_y[u];
+      }
+      const float step_x = ixx * bx + ixy * by, step_y = ixy * bx + iyy * by;
+      dx -= step_x;
+      dy -= step_y;
+      if (!(std::abs(dx) <= kMaxShift && std::abs(dy) <= kMaxShift)) {
+        ok = false;
+        break;
+      }
+      if (step_x * step_x + step_y * step_y < kConverged * kConverged) break;
+    }
+    if (!ok) continue;
+    // Previous keypoint p sits at the rounded template centre plus its own fraction.
+    m.offset = cv::Point2f(static_cast<float>(qx) + dx + (p.x - static_cast<float>(px)) - q.x,
+                           static_cast<float>(qy) + dy + (p.y - static_cast<float>(py)) - q.y);
+  }
 }
 
 }  // namespace visual_gyro

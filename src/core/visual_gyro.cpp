@@ -78,6 +78,26 @@ std::string applySetting(VisualGyroSettings* settings, const std::string& name, 
   return "";
 }
 
+std::string settingsMarkdownTable() {
+  using Field = SettingField<VisualGyroSettings>;
+  const VisualGyroSettings defaults;
+  std::ostringstream out;
+  out << "| setting | default | accepted | meaning |\n| --- | --- | --- | --- |\n";
+  for (const Field& f : visualGyroSettingFields()) {
+    std::string accepted;
+    if (f.type == SettingType::kBool) {
+      accepted = "true, false";
+    } else if (f.type == SettingType::kString) {
+      for (const auto& c : f.choices) accepted += (accepted.empty() ? "" : ", ") + c;
+    } else {
+      accepted = Field::formatNumber(f.min) + " … " + Field::formatNumber(f.max);
+    }
+    if (!f.unit.empty()) accepted += " " + f.unit;
+    out << "| `" << f.name << "` | " << f.text(defaults) << " | " << accepted << " | " << f.doc << " |\n";
+  }
+  return out.str();
+}
+
 std::string validateVisualGyroSettings(const VisualGyroSettings& settings) {
   std::string problem = validateFrontEndSettings(settings.front_end);
   if (problem.empty()) problem = validateSettings(settings.estimator);
@@ -205,6 +225,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     auto t0 = std::chrono::steady_clock::now();
     try {
       matchFrames(prior);
+      front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
     } catch (const std::exception& e) {
       // Before any state changed: the frame is rejected, the previous one stays.
       return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
@@ -221,6 +242,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         const EstimateTimes guided_times = result.rotation.times;
         t0 = std::chrono::steady_clock::now();
         front_end_.match(previous_features_, features_, &matches_);
+        front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
         matching_ = "global_fallback";
         times.match += elapsedMs(t0);
         collectMatches(&result);
@@ -266,9 +288,16 @@ void VisualGyro::collectMatches(FrameResult* result) const {
   result->current_bearings.clear();
   for (const FeatureMatch& m : matches_) {
     result->previous_pixels.push_back(previous_features_.keypoints[m.previous]);
-    result->current_pixels.push_back(features_.keypoints[m.current]);
     result->previous_bearings.push_back(previous_keypoint_bearings_[m.previous]);
-    result->current_bearings.push_back(bearings_[m.current]);
+    if (m.offset.x == 0.f && m.offset.y == 0.f) {
+      result->current_pixels.push_back(features_.keypoints[m.current]);
+      result->current_bearings.push_back(bearings_[m.current]);
+    } else {
+      // Sub-pixel position of the match (refineMatches()).
+      const cv::Point2f pixel = features_.keypoints[m.current] + m.offset;
+      result->current_pixels.push_back(pixel);
+      result->current_bearings.push_back(camera_.bearing(pixel.x, pixel.y));
+    }
   }
 }
 

@@ -51,11 +51,11 @@ void fillTruth(const Sequence& seq, FramePair* p) {
   }
 }
 
-/// 0..n-1 in a deterministic random order (Fisher-Yates on the package's generator).
+/// 0..n-1 in a deterministic random order.
 std::vector<size_t> shuffledIndices(size_t n, SplitMix64* rng) {
   std::vector<size_t> order(n);
   for (size_t i = 0; i < n; ++i) order[i] = i;
-  for (size_t i = n; i > 1; --i) std::swap(order[i - 1], order[rng->below(i)]);
+  rng->shuffle(order);
   return order;
 }
 

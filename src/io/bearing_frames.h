@@ -9,10 +9,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <random>
 #include <vector>
 
 #include "hypothesis_math.h"
+#include "visual_gyro/random.h"
 
 namespace visual_gyro {
 namespace bearings {
@@ -65,9 +65,9 @@ inline void rotationFromYawPitchRoll(double yaw, double pitch, double roll, doub
 /// (yaw, pitch, roll) [rad].
 inline BearingFrame makeSyntheticFrame(const SyntheticOptions& options, uint64_t seed, int64_t index = 0,
                                        double truth_ypr[3] = nullptr) {
-  std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + 12345u);
-  std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  std::normal_distribution<double> gauss(0.0, 1.0);
+  SplitMix64 rng(seed * 0x9E3779B97F4A7C15ull + 12345u);
+  auto unit = [](SplitMix64& r) { return r.uniform(-1.0, 1.0); };
+  auto gauss = [](SplitMix64& r) { return r.normal(); };
   const double deg = 3.14159265358979323846 / 180.0;
   const double yaw = options.max_yaw_deg * deg * unit(rng);
   const double pitch = options.max_pitch_roll_deg * deg * unit(rng);
@@ -125,11 +125,11 @@ inline BearingFrame resampleFrame(const BearingFrame& frame, uint32_t count, uin
   std::copy(frame.truth, frame.truth + 9, out.truth);
   const size_t n = frame.prev.size();
   if (n == 0) return out;
-  std::mt19937_64 rng(seed);
+  SplitMix64 rng(seed);
   std::vector<size_t> order(n);
   for (size_t i = 0; i < n; ++i) order[i] = i;
-  std::shuffle(order.begin(), order.end(), rng);
-  std::normal_distribution<float> jitter(0.f, 1e-5f);
+  rng.shuffle(order);
+  auto jitter = [](SplitMix64& r) { return static_cast<float>(1e-5 * r.normal()); };
   auto jittered = [&](hyp::Vec3f v) {
     v = hyp::make3(v.x + jitter(rng), v.y + jitter(rng), v.z + jitter(rng));
     return (1.f / hyp::norm(v)) * v;

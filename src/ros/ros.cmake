@@ -58,7 +58,7 @@ target_compile_options(visual_gyro_ros_tools PRIVATE -Wall -Wextra)
 
 foreach(tool make_bag play_frames summarize_outputs integrate_imu)
   add_executable(${tool} src/ros/${tool}.cpp)
-  target_link_libraries(${tool} visual_gyro_ros_tools)
+  target_link_libraries(${tool} visual_gyro_ros_tools visual_gyro_cli)
 endforeach()
 
 install(TARGETS visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs integrate_imu

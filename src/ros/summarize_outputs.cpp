@@ -5,35 +5,44 @@
 #include <algorithm>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Imu.h>
 
 #include "bag_tools.h"
+#include "command_line.h"
 
-int main(int argc, char** argv) {
-  if (argc < 3) {
-    std::fprintf(stderr,
-                 "usage: summarize_outputs <sequence.bag> <outputs.bag> [--ns /visual_gyro] [--dataset NAME]\n");
-    return 2;
-  }
-  const std::string sequence_bag = argv[1], outputs_bag = argv[2];
+namespace {
+
+const char* const kUsage =
+    "usage: summarize_outputs <sequence.bag> <outputs.bag> [--ns /visual_gyro] [--dataset NAME]\n";
+
+int run(int argc, char** argv) {
+  std::vector<std::string> positional;
   std::string ns = "/visual_gyro", dataset;
-  for (int i = 3; i + 1 < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--ns") ns = argv[i + 1];
-    else if (a == "--dataset") dataset = argv[i + 1];
-    else {
-      std::fprintf(stderr, "summarize_outputs: unknown option '%s'\n", a.c_str());
-      return 2;
+  for (visual_gyro::cli::Arguments args(argc, argv); args.next();) {
+    if (args.is("-h") || args.is("--help")) {
+      std::printf("%s", kUsage);
+      return 0;
+    } else if (args.is("--ns")) {
+      ns = args.value();
+    } else if (args.is("--dataset")) {
+      dataset = args.value();
+    } else if (args.isOption() || positional.size() == 2) {
+      args.unexpected();
+    } else {
+      positional.push_back(args.current());
     }
   }
+  if (positional.size() != 2) throw visual_gyro::cli::UsageError("a sequence bag and an outputs bag are needed");
+  const std::string sequence_bag = positional[0], outputs_bag = positional[1];
   if (dataset.empty()) {
     dataset = sequence_bag.substr(sequence_bag.find_last_of('/') + 1);
     if (dataset.size() > 4 && dataset.substr(dataset.size() - 4) == ".bag") dataset.resize(dataset.size() - 4);
   }
-  try {
+  {
     const auto truth = visual_gyro::bag_tools::readSequenceBag(sequence_bag);
     std::vector<visual_gyro::RotationEstimate> estimates;
     int imus = 0;
@@ -53,9 +62,12 @@ int main(int argc, char** argv) {
               [](const auto& a, const auto& b) { return a.previous_stamp < b.previous_stamp; });
     const auto summary = visual_gyro::bag_tools::evaluateOutputs(estimates, imus, truth, dataset);
     std::printf("%s\n%s\n", summary.text().c_str(), summary.json().c_str());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "summarize_outputs: %s\n", e.what());
-    return 1;
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return visual_gyro::cli::runCommand("summarize_outputs", kUsage, [&] { return run(argc, argv); });
 }

@@ -56,7 +56,8 @@ const char* const kUsage =
     "  --sweep-repeats R      runs per pair in the sweep; the fastest counts (default 3)\n"
     "  --quiet                summary and JSON only (no progress)\n"
     "  --list-methods         print the methods this build has, comma-separated, and exit\n"
-    "  --list-backends        print the backends that work here (cpu[,cuda]; why not cuda on stderr)\n";
+    "  --list-backends        print the backends that work here (cpu[,cuda]; why not cuda on stderr)\n"
+    "  --settings-table       print every setting (default, accepted values, meaning) as Markdown\n";
 
 struct Options {
   std::string folder;
@@ -130,6 +131,9 @@ Options parseOptions(int argc, char** argv) {
       std::string list;
       for (const auto& m : eval::methodNames()) list += (list.empty() ? "" : ",") + m;
       std::cout << list << "\n";
+      std::exit(0);
+    } else if (args.is("--settings-table")) {
+      std::cout << settingsMarkdownTable();
       std::exit(0);
     } else if (args.is("--list-backends")) {
       std::string why;
