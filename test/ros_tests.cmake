@@ -88,7 +88,7 @@ add_dependencies(test_offline_equivalence visual_gyro_node render_sequence evalu
 # rospack, rosrun and roslaunch find the package in the workspace without a warning (no master).
 catkin_add_gtest(test_workspace_layout test/ros/test_workspace_layout.cpp test/test_support.cpp)
 target_include_directories(test_workspace_layout PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/test)
-target_link_libraries(test_workspace_layout gtest_main)
+target_link_libraries(test_workspace_layout visual_gyro_sim gtest_main)
 target_compile_definitions(test_workspace_layout PRIVATE VISUAL_GYRO_DEFAULT_DATA="${VISUAL_GYRO_DEFAULT_DATA}"
   VISUAL_GYRO_REPO_DIR="${VISUAL_GYRO_REPO_DIR}")
 add_dependencies(test_workspace_layout make_bag)
