@@ -3,7 +3,7 @@
 set -euo pipefail
 source "$(dirname "$0")/env.sh"
 mkdir -p "${WS}/src"
-ln -sfn "${REPO_DIR}" "${WS}/src/visual_gyro"
+shadow_package_dir
 args=(-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release "-DVISUAL_GYRO_CUDA=${CUDA_MODE}")
 if [[ ${CUDA_MODE} != OFF ]]; then
   nvcc_path=$(command -v nvcc || true)

@@ -32,28 +32,13 @@ case "${TRANSPORT}" in
   raw | compressed) ;;
   *) log "TRANSPORT=${TRANSPORT}: raw or compressed"; exit 2 ;;
 esac
-for tool in visual_gyro_node make_bag play_frames summarize_outputs render_sequence; do
-  if [[ ! -x "${BIN}/${tool}" ]]; then
-    log "missing ${BIN}/${tool}: build first (make build, or scripts/build.sh)"
-    exit 1
-  fi
-done
+source "$(dirname "$0")/ros_common.sh"
+require_built visual_gyro_node make_bag play_frames summarize_outputs render_sequence
 source_ws
 mkdir -p "${OUT_DIR}"
 
 # --- the sequence and its bag ---
-if [[ -n "${DATA:-}" ]]; then
-  [[ -d "${DATA}" ]] || { log "DATA=${DATA} is not a folder"; exit 2; }
-  SEQ_DIR="$(cd "${DATA}" && pwd)"
-  NAME="$(basename "${SEQ_DIR}")"
-else
-  NAME=rendered_drive
-  SEQ_DIR="${OUT_DIR}/${NAME}"
-  log "rendering the default sequence (preset drive) into ${SEQ_DIR}"
-  rm -rf "${SEQ_DIR}"
-  "${BIN}/render_sequence" --preset drive --out "${SEQ_DIR}" >"${OUT_DIR}/render.log" 2>&1 ||
-    { cat "${OUT_DIR}/render.log" >&2; exit 1; }
-fi
+prepare_sequence "${OUT_DIR}"
 BAG="${OUT_DIR}/${NAME}.bag"
 OUTPUTS="${OUT_DIR}/${NAME}_outputs.bag"
 bag_args=()
@@ -61,34 +46,8 @@ bag_args=()
 log "converting ${SEQ_DIR} to ${BAG}"
 "${BIN}/make_bag" "${SEQ_DIR}" "${BAG}" "${bag_args[@]}" >&2
 
-# --- a private master, cleaned up on exit ---
-PORT="$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
-export ROS_MASTER_URI="http://localhost:${PORT}" ROS_HOSTNAME=localhost
-export ROS_LOG_DIR="${OUT_DIR}/log" ROS_HOME="${OUT_DIR}/ros_home"
-unset ROS_IP
-mkdir -p "${ROS_LOG_DIR}" "${ROS_HOME}"
-pids=()
-cleanup() {
-  local i
-  for ((i = ${#pids[@]} - 1; i >= 0; i--)); do
-    kill -INT "${pids[i]}" 2>/dev/null || true
-  done
-  for pid in "${pids[@]}"; do
-    for _ in $(seq 50); do kill -0 "${pid}" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "${pid}" 2>/dev/null || true
-  done
-}
-trap cleanup EXIT
-trap 'exit 130' INT TERM
-
-log "starting a ROS master on port ${PORT}"
-roscore -p "${PORT}" >"${OUT_DIR}/roscore.log" 2>&1 &
-pids+=($!)
-for _ in $(seq 150); do
-  rostopic list >/dev/null 2>&1 && break
-  sleep 0.2
-done
-rostopic list >/dev/null 2>&1 || { log "the ROS master did not come up:"; tail -20 "${OUT_DIR}/roscore.log" >&2; exit 1; }
+# --- a private master; everything started in the background is stopped on exit ---
+start_private_master "${OUT_DIR}"
 
 # --- the node (parameters from config/visual_gyro.yaml) and the recorder ---
 rosparam load "${REPO_DIR}/config/visual_gyro.yaml" "${NS}"
@@ -98,18 +57,16 @@ rosparam set "${NS}/image_transport" "${TRANSPORT}"
 for assignment in ${PARAMS:-}; do
   rosparam set "${NS}/${assignment%%=*}" "${assignment#*=}"
 done
-"${BIN}/visual_gyro_node" __name:=visual_gyro image:=/camera/image_raw ground_truth:=/ground_truth/pose \
-  >"${OUT_DIR}/node.log" 2>&1 &
-pids+=($!)
+run_background "${OUT_DIR}/node.log" \
+  "${BIN}/visual_gyro_node" __name:=visual_gyro image:=/camera/image_raw ground_truth:=/ground_truth/pose
 rm -f "${OUTPUTS}" "${OUTPUTS}.active"
 # The recorder binary itself (not the `rosbag record` Python wrapper, whose SIGINT forwarding fails
 # in a background job) so that waiting for its PID means the bag is closed.
 record_cmd=(rosbag record)
 [[ -x /usr/lib/rosbag/record ]] && record_cmd=(/usr/lib/rosbag/record)
-"${record_cmd[@]}" -O "${OUTPUTS}" "${NS}/rotation" "${NS}/imu" __name:=visual_gyro_recorder \
-  >"${OUT_DIR}/record.log" 2>&1 &
-recorder=$!
-pids+=("${recorder}")
+run_background "${OUT_DIR}/record.log" \
+  "${record_cmd[@]}" -O "${OUTPUTS}" "${NS}/rotation" "${NS}/imu" __name:=visual_gyro_recorder
+recorder=${LAST_PID}
 
 log "replaying ${NAME} frame by frame through the visual_gyro node (method ${METHOD}, backend ${BACKEND}, ${TRANSPORT} images)"
 if ! "${BIN}/play_frames" "${BAG}" --ns "${NS}" --timeout 60 --wait-for "${NS}/rotation" --wait-for "${NS}/imu" \

@@ -21,24 +21,13 @@ log() { echo "[rviz-shot] $*" >&2; }
 for tool in rviz Xvfb import roslaunch; do
   command -v "${tool}" >/dev/null || { log "missing ${tool}: run scripts/install_deps.sh (make deps)"; exit 1; }
 done
-for tool in make_bag render_sequence; do
-  [[ -x "${BIN}/${tool}" ]] || { log "missing ${BIN}/${tool}: build first (make build)"; exit 1; }
-done
+source "$(dirname "$0")/ros_common.sh"
+require_built make_bag render_sequence
 source_ws
 mkdir -p "${OUT_DIR}"
 
 # --- the bag ---
-if [[ -n "${DATA:-}" ]]; then
-  [[ -d "${DATA}" ]] || { log "DATA=${DATA} is not a folder"; exit 2; }
-  SEQ_DIR="$(cd "${DATA}" && pwd)"
-  NAME="$(basename "${SEQ_DIR}")"
-else
-  NAME=rendered_drive
-  SEQ_DIR="${OUT_DIR}/${NAME}"
-  rm -rf "${SEQ_DIR}"
-  "${BIN}/render_sequence" --preset drive --frames "$((FRAMES > 0 ? FRAMES : 60))" --out "${SEQ_DIR}" \
-    >"${OUT_DIR}/render.log" 2>&1 || { cat "${OUT_DIR}/render.log" >&2; exit 1; }
-fi
+prepare_sequence "${OUT_DIR}" "$((FRAMES > 0 ? FRAMES : 60))"
 BAG="${OUT_DIR}/${NAME}.bag"
 bag_args=()
 ((FRAMES > 0)) && bag_args+=(--max-frames "${FRAMES}")
@@ -47,31 +36,13 @@ bag_args=()
 LAST_STAMP="$(sed -n 's/.*stamps [0-9.]* \.\. \([0-9.]*\) s.*/\1/p' "${OUT_DIR}/make_bag.log")"
 [[ -n ${LAST_STAMP} ]] || { log "could not read the last stamp from make_bag's output"; exit 1; }
 
-# --- a private master and display, cleaned up on exit ---
-PORT="$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
-export ROS_MASTER_URI="http://localhost:${PORT}" ROS_HOSTNAME=localhost
-export ROS_LOG_DIR="${OUT_DIR}/log" ROS_HOME="${OUT_DIR}/ros_home"
-unset ROS_IP
-mkdir -p "${ROS_LOG_DIR}" "${ROS_HOME}"
-pids=()
-cleanup() {
-  local i
-  for ((i = ${#pids[@]} - 1; i >= 0; i--)); do kill -INT "${pids[i]}" 2>/dev/null || true; done
-  for pid in "${pids[@]}"; do
-    for _ in $(seq 100); do kill -0 "${pid}" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "${pid}" 2>/dev/null || true
-  done
-}
-trap cleanup EXIT
-trap 'exit 130' INT TERM
-
+# --- a private display and master; everything started in the background is stopped on exit ---
 display=""
 for n in $(seq 91 250); do
   if [[ ! -e /tmp/.X11-unix/X${n} && ! -e /tmp/.X${n}-lock ]]; then display=${n}; break; fi
 done
 [[ -n ${display} ]] || { log "no free X display number"; exit 1; }
-Xvfb ":${display}" -screen 0 1400x900x24 -nolisten tcp >"${OUT_DIR}/xvfb.log" 2>&1 &
-pids+=($!)
+run_background "${OUT_DIR}/xvfb.log" Xvfb ":${display}" -screen 0 1400x900x24 -nolisten tcp
 for _ in $(seq 100); do [[ -e /tmp/.X11-unix/X${display} ]] && break; sleep 0.1; done
 [[ -e /tmp/.X11-unix/X${display} ]] || { log "Xvfb did not start:"; cat "${OUT_DIR}/xvfb.log" >&2; exit 1; }
 export DISPLAY=":${display}"
@@ -79,17 +50,13 @@ export DISPLAY=":${display}"
 export HOME="${OUT_DIR}/home"
 mkdir -p "${HOME}"
 
-roscore -p "${PORT}" >"${OUT_DIR}/roscore.log" 2>&1 &
-pids+=($!)
-for _ in $(seq 150); do rostopic list >/dev/null 2>&1 && break; sleep 0.2; done
-rostopic list >/dev/null 2>&1 || { log "the ROS master did not come up:"; tail -20 "${OUT_DIR}/roscore.log" >&2; exit 1; }
+start_private_master "${OUT_DIR}"
 
 log "replaying ${NAME} through replay.launch with rviz on display :${display}"
 # Paused until rviz and the node have subscribed (rviz takes seconds to start with software
 # OpenGL); kept alive after the end so that rviz still shows everything for the screenshot.
-roslaunch visual_gyro replay.launch "bag:=${BAG}" rviz:=true "rate:=${RATE}" delay:=0 \
-  player_args:="--pause --keep-alive" >"${OUT_DIR}/roslaunch.log" 2>&1 &
-pids+=($!)
+run_background "${OUT_DIR}/roslaunch.log" roslaunch visual_gyro replay.launch "bag:=${BAG}" rviz:=true \
+  "rate:=${RATE}" delay:=0 player_args:="--pause --keep-alive"
 input_topic=/camera/camera_info
 if ! /usr/bin/python3 "${REPO_DIR}/scripts/replay_control.py" --last-stamp "${LAST_STAMP}" \
   --subscribed /camera/visual_gyro/yaw_plot --subscribed "${input_topic}" --settle 3 --timeout 240 \

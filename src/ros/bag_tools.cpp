@@ -16,6 +16,7 @@
 #include <sensor_msgs/image_encodings.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include "metrics.h"
 #include "ros_conversions.h"
 #include "visual_gyro/geometry.h"
 #include "visual_gyro/rotation_estimator.h"
@@ -306,15 +307,13 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
   s.frames = static_cast<int>(estimates.size());
   s.imu_published = imu_count;
   const Truth truth(truth_bag);
-  double rot_sq = 0, rot_max = 0, yaw_sq = 0, yaw_max = 0, rate_sum = 0, rate_err_sq = 0;
-  int rate_compared = 0;
+  // Scored as evaluate scores: an invalid estimate is the identity (metrics::scoreFrame).
+  metrics::AccuracyAccumulator accuracy;
   double detect = 0, describe = 0, match = 0, estimate = 0, total = 0, latency = 0;
   for (const auto& e : estimates) {
     if (s.method.empty()) s.method = e.method;
     if (s.backend.empty()) s.backend = e.backend;
     if (e.valid) ++s.valid_frames;
-    const Eigen::Vector3d omega(e.angular_velocity.x, e.angular_velocity.y, e.angular_velocity.z);
-    rate_sum += omega.norm() * kRadToDeg;
     detect += e.detect_ms;
     describe += e.describe_ms;
     match += e.match_ms;
@@ -324,33 +323,38 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
 
     const double t0 = e.previous_stamp.toSec();
     const double t1 = t0 + e.dt;  // the current image's stamp, also when outputs use the midpoint
-    const Eigen::Matrix3d r_est = conv::fromMsg(e.rotation).toRotationMatrix();
-    Eigen::Matrix3d r0, r1, r_true, r_gyro;
+    metrics::FrameEstimate frame;
+    frame.valid = e.valid;
+    frame.rotation = conv::fromMsg(e.rotation).toRotationMatrix();
+    frame.dt = e.dt;
+    metrics::FrameTruth reference;
+    Eigen::Matrix3d r0, r1, r_gyro;
     Eigen::Vector3d mean_rate;
-    bool have_true = false;
     // The poses are the reference for the rotation when the bag has them; the gyro for the rate.
     if (truth.pose(t0, &r0) && truth.pose(t1, &r1)) {
-      r_true = r0.transpose() * r1;
-      have_true = true;
+      reference.has_rotation = reference.from_poses = true;
+      reference.rotation = r0.transpose() * r1;
     }
     if (truth.gyroRotation(t0, t1, &r_gyro, &mean_rate)) {
-      rate_err_sq += (omega - mean_rate).squaredNorm() * kRadToDeg * kRadToDeg;
-      ++rate_compared;
-      if (!have_true) r_true = r_gyro;
-      have_true = true;
+      reference.has_rate = true;
+      reference.rate = mean_rate;
+      if (!reference.has_rotation) {
+        reference.has_rotation = true;
+        reference.rotation = r_gyro;
+      }
     }
-    if (!have_true) continue;
-    const double rot_err = rotationAngleBetween(r_est, r_true) * kRadToDeg;
-    const double yaw_err = std::abs(wrapAngleDeg((yawPitchRollFromRotation(r_est)[0] - yawPitchRollFromRotation(r_true)[0]) * kRadToDeg));
-    rot_sq += rot_err * rot_err;
-    rot_max = std::max(rot_max, rot_err);
-    yaw_sq += yaw_err * yaw_err;
-    yaw_max = std::max(yaw_max, yaw_err);
-    ++s.compared;
+    accuracy.add(e.valid, metrics::scoreFrame(frame, reference), reference);
   }
+  const metrics::AccuracySummary a = accuracy.summary();
+  s.compared = a.with_truth;
+  s.rot_rmse_deg = a.rot_rmse_deg;
+  s.rot_max_deg = a.rot_max_deg;
+  s.yaw_rmse_deg = a.yaw_rmse_deg;
+  s.yaw_max_deg = a.yaw_max_deg;
+  s.mean_rate_dps = a.mean_rate_dps;
+  s.rate_rmse_dps = a.rate_rmse_dps;
   if (s.frames > 0) {
     const double n = s.frames;
-    s.mean_rate_dps = rate_sum / n;
     s.detect_ms = detect / n;
     s.describe_ms = describe / n;
     s.match_ms = match / n;
@@ -358,13 +362,6 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
     s.total_ms = total / n;
     s.latency_ms = latency / n;
   }
-  if (s.compared > 0) {
-    s.rot_rmse_deg = std::sqrt(rot_sq / s.compared);
-    s.rot_max_deg = rot_max;
-    s.yaw_rmse_deg = std::sqrt(yaw_sq / s.compared);
-    s.yaw_max_deg = yaw_max;
-  }
-  if (rate_compared > 0) s.rate_rmse_dps = std::sqrt(rate_err_sq / rate_compared);
   return s;
 }
 

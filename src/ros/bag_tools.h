@@ -100,8 +100,9 @@ struct OutputSummary {
 /// Compares estimates (rotation in the camera optical frame, as published without ~output_frame)
 /// with the truth in `truth`: per message R_true = R_gt(prev)^T R_gt(cur) from the poses, or, when
 /// there are none, the gyro integrated between the two stamps and rotated into the camera frame with
-/// the /tf_static rotation. Rotation error = angle of R_est^T R_true; yaw error = difference of the
-/// yaws (about the camera's y axis, R = Ry Rx Rz).
+/// the /tf_static rotation. Scored with the metrics module, exactly as `evaluate` scores: an invalid
+/// estimate counts as the identity; rotation error = angle of R_est^T R_true; yaw error =
+/// difference of the yaws (about the camera's y axis, R = Ry Rx Rz).
 OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& estimates, int imu_count,
                               const BagContents& truth, const std::string& dataset);
 

@@ -22,7 +22,70 @@ double median(std::vector<double> values) {
 
 }  // namespace
 
+void NodeDiagnostics::start(double now) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  window_ = Window();
+  window_start_ = now;
+}
+
+void NodeDiagnostics::processed() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++window_.processed;
+}
+
+void NodeDiagnostics::setCameraProblem(const std::string& problem) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  camera_problem_ = problem;
+}
+
+void NodeDiagnostics::setSettingsProblem(const std::string& problem) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  settings_problem_ = problem;
+}
+
+void NodeDiagnostics::setRejectedChange(const std::string& why) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  rejected_change_ = why;
+}
+
+void NodeDiagnostics::setBackend(const std::string& used, const std::string& warning) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  backend_used_ = used;
+  backend_warning_ = warning;
+}
+
+std::string NodeDiagnostics::cameraProblem() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return camera_problem_;
+}
+
+std::string NodeDiagnostics::settingsProblem() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return settings_problem_;
+}
+
+std::string NodeDiagnostics::rejectedChange() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return rejected_change_;
+}
+
+uint64_t NodeDiagnostics::totalImages() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return total_images_;
+}
+
+uint64_t NodeDiagnostics::totalEstimates() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return total_estimates_;
+}
+
+uint64_t NodeDiagnostics::totalResets() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return total_resets_;
+}
+
 void NodeDiagnostics::imageIn(double stamp) {
+  std::lock_guard<std::mutex> lock(mutex_);
   ++window_.images;
   ++total_images_;
   // The expected rate comes from the stamps, so that it does not depend on how fast images are
@@ -33,17 +96,20 @@ void NodeDiagnostics::imageIn(double stamp) {
 }
 
 void NodeDiagnostics::probedInput(uint64_t images, uint64_t infos) {
+  std::lock_guard<std::mutex> lock(mutex_);
   window_.probed_images += images;
   window_.infos += infos;
 }
 
 void NodeDiagnostics::skipped(const std::string& reason) {
+  std::lock_guard<std::mutex> lock(mutex_);
   ++skipped_[reason];
   ++window_.skipped;
   last_skip_reason_ = reason;
 }
 
 void NodeDiagnostics::reset(const std::string& cause) {
+  std::lock_guard<std::mutex> lock(mutex_);
   ++window_.resets;
   ++total_resets_;
   last_reset_cause_ = cause;
@@ -51,6 +117,7 @@ void NodeDiagnostics::reset(const std::string& cause) {
 
 void NodeDiagnostics::estimatePublished(bool valid, const std::string& status, double latency_ms,
                                         int matches, double vote_ratio) {
+  std::lock_guard<std::mutex> lock(mutex_);
   ++window_.estimates;
   ++total_estimates_;
   window_.latency_sum_ms += latency_ms;
@@ -65,12 +132,14 @@ void NodeDiagnostics::estimatePublished(bool valid, const std::string& status, d
 }
 
 void NodeDiagnostics::imuPublished() {
+  std::lock_guard<std::mutex> lock(mutex_);
   ++window_.imus;
   ++total_imus_;
 }
 
 void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, double now,
                            const Context& context) {
+  std::lock_guard<std::mutex> lock(mutex_);
   const double span = std::max(now - window_start_, 1e-3);
   Window w = window_;
   // The probe sees paired images too (it runs until pairs come); the surplus had no camera_info.
@@ -98,9 +167,11 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
   status.add("Winning vote ratio (mean)", w.estimates > 0 ? w.vote_ratio_sum / w.estimates : 0.0);
   status.add("Method", context.method.empty() ? std::string("?") : context.method);
   status.add("Backend requested", context.backend_requested);
-  status.add("Backend", context.backend_used.empty() ? std::string("(not started: no image yet)")
-                                                     : context.backend_used);
-  if (!context.backend_warning.empty()) status.add("Backend warning", context.backend_warning);
+  const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;
+  const std::string& backend_warning =
+      context.backend_warning.empty() ? backend_warning_ : context.backend_warning;
+  status.add("Backend", backend_used.empty() ? std::string("(not started: no image yet)") : backend_used);
+  if (!backend_warning.empty()) status.add("Backend warning", backend_warning);
   status.add("Images received", total_images_);
   status.add("Estimates published", total_estimates_);
   status.add("Imu published", total_imus_);
@@ -115,6 +186,7 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
   status.add("Skipped frames", skipped_total);
   if (!camera_problem_.empty()) status.add("Camera problem", camera_problem_);
   if (!settings_problem_.empty()) status.add("Settings problem", settings_problem_);
+  if (!rejected_change_.empty()) status.add("Rejected settings change", rejected_change_);
 
   // The first matching line is the summary, most severe first.
   const bool input = w.images > 0 || w.unpaired_images > 0;
@@ -122,6 +194,8 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
     status.summary(Level::ERROR, "settings unusable, no output: " + settings_problem_);
   } else if (!camera_problem_.empty() && w.processed == 0 && input) {
     status.summary(Level::ERROR, "camera unusable, no output: " + camera_problem_);
+  } else if (!rejected_change_.empty()) {
+    status.summary(Level::WARN, "rejected settings change: " + rejected_change_);
   } else if (w.unpaired_images > 0 && w.images == 0) {
     status.summaryf(Level::WARN, "%llu image(s) on %s but %s, no output",
                     ull(w.unpaired_images), context.image_topic.c_str(),
@@ -146,7 +220,7 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
     status.summary(Level::OK, "subscribed, waiting for images");
   } else {
     status.summaryf(Level::OK, "%.1f Hz out (expected %.1f Hz), %.1f ms latency, backend %s",
-                    valid_hz, expected_hz, mean_latency, context.backend_used.c_str());
+                    valid_hz, expected_hz, mean_latency, backend_used.c_str());
   }
 }
 

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <map>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -15,8 +16,9 @@ namespace visual_gyro {
 /// camera or settings; WARN when input arrives but nothing (or too little) is published, naming
 /// the cause (no camera_info, reset storm, skipped or invalid frames); OK otherwise. Rates follow
 /// diagnostic_updater::TopicDiagnostic: the expected rate (from the image stamps) beside the
-/// measured rates of images in and estimates out. Not thread-safe: the nodelet calls it under its
-/// state mutex. Times are wall-clock seconds.
+/// measured rates of images in and estimates out. Thread-safe: every call holds the object's own
+/// mutex for its few statements only (the innermost lock of the nodelet). Times are wall-clock
+/// seconds.
 class NodeDiagnostics {
  public:
   /// What the status reports besides the counts.
@@ -27,6 +29,11 @@ class NodeDiagnostics {
   };
 
   explicit NodeDiagnostics(double now = 0.0) : window_start_(now) {}
+  NodeDiagnostics(const NodeDiagnostics&) = delete;
+  NodeDiagnostics& operator=(const NodeDiagnostics&) = delete;
+
+  /// Starts the first window at `now`.
+  void start(double now);
 
   /// A (synchronized) image reached the node; `stamp` is its header stamp [s].
   void imageIn(double stamp);
@@ -38,7 +45,7 @@ class NodeDiagnostics {
   /// The state was reset (previous frame, orientation, plot forgotten) because of `cause`.
   void reset(const std::string& cause);
   /// A frame went through the pipeline.
-  void processed() { ++window_.processed; }
+  void processed();
   /// A RotationEstimate was published: its validity, status, latency [ms], matches and the ratio
   /// of winning votes to accepted hypotheses.
   void estimatePublished(bool valid, const std::string& status, double latency_ms, int matches,
@@ -46,18 +53,24 @@ class NodeDiagnostics {
   /// An Imu was published.
   void imuPublished();
   /// Why the current camera model is unusable; "" clears it.
-  void setCameraProblem(const std::string& problem) { camera_problem_ = problem; }
-  /// Why the settings are unusable; "" clears it.
-  void setSettingsProblem(const std::string& problem) { settings_problem_ = problem; }
-  const std::string& cameraProblem() const { return camera_problem_; }
-  const std::string& settingsProblem() const { return settings_problem_; }
+  void setCameraProblem(const std::string& problem);
+  /// Why the settings are unusable (no output at all); "" clears it.
+  void setSettingsProblem(const std::string& problem);
+  /// Why the last live settings change was rejected (the previous settings stay in use): a WARN
+  /// until a later change is accepted, which clears it with "".
+  void setRejectedChange(const std::string& why);
+  /// The backend in use and its last warning (when the context does not name them).
+  void setBackend(const std::string& used, const std::string& warning);
+  std::string cameraProblem() const;
+  std::string settingsProblem() const;
+  std::string rejectedChange() const;
 
   /// Fills `status` with the window since the last call (then starts a new window) and totals.
   void fill(diagnostic_updater::DiagnosticStatusWrapper& status, double now, const Context& context);
 
-  uint64_t totalImages() const { return total_images_; }
-  uint64_t totalEstimates() const { return total_estimates_; }
-  uint64_t totalResets() const { return total_resets_; }
+  uint64_t totalImages() const;
+  uint64_t totalEstimates() const;
+  uint64_t totalResets() const;
 
  private:
   struct Window {
@@ -66,6 +79,7 @@ class NodeDiagnostics {
     double latency_sum_ms = 0.0, latency_max_ms = 0.0, matches_sum = 0.0, vote_ratio_sum = 0.0;
     std::vector<double> stamp_steps;  ///< differences of consecutive image stamps [s]
   };
+  mutable std::mutex mutex_;  ///< guards everything below
   Window window_;
   double window_start_ = 0.0;
   bool have_last_stamp_ = false;
@@ -74,7 +88,8 @@ class NodeDiagnostics {
   uint64_t total_resets_ = 0;
   std::map<std::string, uint64_t> skipped_;  ///< reason -> frames
   std::string last_skip_reason_, last_invalid_reason_, last_reset_cause_;
-  std::string camera_problem_, settings_problem_;
+  std::string camera_problem_, settings_problem_, rejected_change_;
+  std::string backend_used_, backend_warning_;
 };
 
 }  // namespace visual_gyro

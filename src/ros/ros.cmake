@@ -6,6 +6,13 @@
 #   summarize_outputs     errors of the recorded outputs against the bag's ground truth (demo JSON)
 #   integrate_imu         the recorded ~imu integrated as a filter does, orientation error over time
 
+# The workspace holds the package as a shadow folder of links to the repository's entries
+# (scripts/build.sh), so the source folder's real path is not the checkout: resolve the checkout
+# through a file inside it (the shared data lives beside the real checkout).
+get_filename_component(VISUAL_GYRO_REPO_DIR "${CMAKE_CURRENT_SOURCE_DIR}/package.xml" REALPATH)
+get_filename_component(VISUAL_GYRO_REPO_DIR "${VISUAL_GYRO_REPO_DIR}" DIRECTORY)
+get_filename_component(VISUAL_GYRO_DEFAULT_DATA "${VISUAL_GYRO_REPO_DIR}/../shared/data" ABSOLUTE)
+
 set(VISUAL_GYRO_ROS_INCLUDES
   ${CMAKE_CURRENT_SOURCE_DIR}/src/ros
   ${CATKIN_DEVEL_PREFIX}/${CATKIN_GLOBAL_INCLUDE_DESTINATION}  # generated messages and config
@@ -13,6 +20,10 @@ set(VISUAL_GYRO_ROS_INCLUDES
 
 add_library(visual_gyro_nodelet
   src/ros/visual_gyro_nodelet.cpp
+  src/ros/node_parameters.cpp
+  src/ros/input_probe.cpp
+  src/ros/reconfigure_settings.cpp
+  src/ros/output_publisher.cpp
   src/ros/node_diagnostics.cpp
   src/ros/ros_conversions.cpp
   src/ros/yaw_plot.cpp
@@ -36,10 +47,13 @@ add_library(visual_gyro_ros_tools STATIC
   src/ros/ros_conversions.cpp
   src/ros/yaw_plot.cpp
   src/ros/compressed_input.cpp
-  src/ros/imu_integration.cpp)
+  src/ros/imu_integration.cpp
+  src/ros/output_publisher.cpp
+  src/ros/node_parameters.cpp
+  src/ros/node_diagnostics.cpp)
 target_include_directories(visual_gyro_ros_tools PUBLIC ${VISUAL_GYRO_ROS_INCLUDES})
 target_link_libraries(visual_gyro_ros_tools PUBLIC visual_gyro_eval visual_gyro_sim ${catkin_LIBRARIES})
-add_dependencies(visual_gyro_ros_tools ${PROJECT_NAME}_generate_messages_cpp)
+add_dependencies(visual_gyro_ros_tools ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
 target_compile_options(visual_gyro_ros_tools PRIVATE -Wall -Wextra)
 
 foreach(tool make_bag play_frames summarize_outputs integrate_imu)

@@ -3,15 +3,11 @@
 #pragma once
 
 #include <atomic>
-#include <deque>
-#include <map>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <vector>
 
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <geometry_msgs/PoseStamped.h>
@@ -23,14 +19,13 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
-#include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_broadcaster.h>
-#include <tf2_ros/transform_listener.h>
 
+#include "input_probe.h"
 #include "node_diagnostics.h"
+#include "node_parameters.h"
+#include "output_publisher.h"
 #include "visual_gyro/VisualGyroConfig.h"
 #include "visual_gyro/visual_gyro.h"
-#include "yaw_plot.h"
 
 namespace visual_gyro {
 
@@ -46,6 +41,25 @@ namespace visual_gyro {
 /// rotation R maps current-frame bearings into the previous frame (b_prev = R b_cur), in the
 /// camera's optical frame (x right, y down, z forward) or, when ~output_frame is set, rotated into
 /// that frame with the tf2 transform (R_out = T R T^T, w_out = T w). Units: rad, rad/s, s.
+///
+/// Parts: NodeParameters (node-only parameters, read once), reconfigure_settings (the live
+/// settings -> pipeline settings), OutputPublisher (messages, Imu policy, integration, tf, yaw
+/// plot), NodeDiagnostics (counts and the /diagnostics status), InputProbe (which input is
+/// missing). This class keeps the subscriptions, the frame checks (stamps, camera) and the
+/// pipeline.
+///
+/// Threads and locks. Image callbacks run on the nodelet's single-threaded queue; the diagnostics
+/// timer and the dynamic_reconfigure server run on its multi-threaded queue, so neither waits for
+/// a frame. Locks, always taken in this order (a later one may be taken while holding an earlier
+/// one, never the reverse):
+///   1. connect_mutex_: the subscriptions (connect callbacks come from other threads).
+///   2. frame_mutex_: one frame's processing: the pipeline, the previous stamp, the camera, and
+///      the OutputPublisher's integration and output-frame cache.
+///   3. config_mutex_: the accepted live settings (copied out by a frame at its start, swapped by
+///      the reconfigure callback; held for a copy only). The reconfigure server holds its own
+///      mutex around the callback, before this one.
+///   4. OutputPublisher's plot lock: the yaw plot (frames and the ground-truth callback).
+///   5. NodeDiagnostics' lock: counts and problems (held inside each of its calls only).
 class VisualGyroNodelet : public nodelet::Nodelet {
  public:
   VisualGyroNodelet();
@@ -66,108 +80,67 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   /// Decodes a compressed image; null (frame counted as skipped) when it cannot be decoded.
   sensor_msgs::ImageConstPtr decodeCompressed(const sensor_msgs::CompressedImage& image);
   void groundTruthCb(const geometry_msgs::PoseStampedConstPtr& pose);
+  /// Accepts a live change, or rejects it: one error naming the changed settings and why, the
+  /// previous configuration written back into `config` (the server then publishes and stores
+  /// it), and a WARN on /diagnostics until a later change is accepted.
   void reconfigureCb(Config& config, uint32_t level);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
-  /// Starts or stops the probe: while subscribed to image + camera_info but no synchronized pair
-  /// arrives, a plain subscription to each counts what does arrive, so the diagnostics can say
-  /// which one is missing. Called by the diagnostics timer (1 Hz) and on subscription.
-  void updateProbe(bool force_start);
-  /// updateProbe() with connect_mutex_ held.
-  void updateProbeLocked(bool force_start);
 
   /// One image with the camera model it was taken with; `wall_start` is when the callback began.
+  /// Takes frame_mutex_.
   void processImage(const sensor_msgs::Image& image, const CameraModel& camera, ros::WallTime wall_start);
-  /// Camera model from the ~fx... parameters for an image of this size.
-  bool cameraFromParameters(int width, int height, CameraModel* camera, std::string* why) const;
+  /// Makes the pipeline ready for `camera` (built on the first image, re-targeted when the camera
+  /// changes) with `settings` (version `config_version`); false (frame skipped) when the camera is
+  /// unusable.
+  bool preparePipeline(const CameraModel& camera, const VisualGyroSettings& settings, uint64_t config_version);
   /// Forgets the previous frame, the integrated orientation and the yaw plot; `cause` is counted.
   void resetState(const std::string& cause);
-  /// Counts a skipped frame under `reason`.
-  void skip(const std::string& reason);
   /// Skips a frame whose camera model is unusable (`why`): a throttled error, kept for the
   /// diagnostics, and counted under `reason`.
   void skipForCamera(const std::string& why, const std::string& reason);
-  /// Rotation from the camera optical frame into ~output_frame (identity when unset). False when
-  /// the transform is not available yet.
-  bool outputRotation(const std::string& camera_frame, Eigen::Matrix3d* rotation);
-  /// Publishes the yaw plot (when it has a subscriber) as of `stamp` [s].
-  void publishYawPlot(double stamp);
-  /// Pipeline settings from a dynamic_reconfigure config (every cfg entry the settings table
-  /// knows, plus ~backend): "" or the first setting that does not parse or is out of range.
-  std::string settingsFromConfig(const Config& config, VisualGyroSettings* settings) const;
+
+  NodeParameters params_;   ///< read once in onInit, then constant
+  NodeDiagnostics health_;  ///< thread-safe
+  std::unique_ptr<OutputPublisher> outputs_;
 
   // --- ROS handles ---
   std::unique_ptr<image_transport::ImageTransport> it_;
   image_transport::CameraSubscriber camera_sub_;
   image_transport::Subscriber image_sub_;
-  image_transport::Subscriber probe_image_sub_;  ///< see updateProbe()
-  ros::Subscriber probe_compressed_sub_;         ///< the probe's image input when decoding ourselves
-  ros::Subscriber probe_info_sub_;
-  bool probing_ = false;                         ///< guarded by connect_mutex_
-  std::atomic<uint64_t> probe_images_{0}, probe_infos_{0};  ///< since the last diagnostics update
-  std::atomic<uint64_t> paired_images_{0};  ///< synchronized callbacks since the last probe check
+  /// Counts what arrives while no pair does; updated (1 Hz, on subscription) under connect_mutex_.
+  std::unique_ptr<InputProbe> probe_;
   ros::Subscriber ground_truth_sub_;
-  // Compressed input decoded by the nodelet itself.
+  bool decode_compressed_ = false;  ///< compressed requested, image_transport's plugin missing
   message_filters::Subscriber<sensor_msgs::CompressedImage> compressed_camera_sub_;
   message_filters::Subscriber<sensor_msgs::CameraInfo> compressed_info_sub_;
   std::unique_ptr<message_filters::TimeSynchronizer<sensor_msgs::CompressedImage, sensor_msgs::CameraInfo>>
       compressed_sync_;
   ros::Subscriber compressed_image_sub_;
-  ros::Publisher imu_pub_, rotation_pub_, orientation_pub_, yaw_plot_pub_;
-  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
-  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<dynamic_reconfigure::Server<Config>> reconfigure_server_;
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diagnostic_timer_;
 
-  std::mutex connect_mutex_;  ///< guards the subscriptions (connect callbacks run on other threads)
-  std::atomic<bool> subscribed_{false};  // also read by the diagnostics
-  std::mutex state_mutex_;    ///< guards everything below
+  std::mutex connect_mutex_;             ///< 1: the subscriptions
+  std::atomic<bool> subscribed_{false};  ///< also read by the diagnostics
+  std::atomic<bool> reset_pending_{false};  ///< reset before the next frame (inputs re-subscribed)
 
-  // --- parameters ---
-  bool use_camera_info_ = true;
-  std::string transport_ = "raw";   ///< ~image_transport
-  bool decode_compressed_ = false;  ///< compressed requested, image_transport's plugin missing
-  int queue_size_ = 1;              ///< ~queue_size: images waiting while one is processed
-  // Intrinsics when use_camera_info_ is false (fy, cx, cy < 0: fx and the image centre).
-  double param_fx_ = 0.0, param_fy_ = -1.0, param_cx_ = -1.0, param_cy_ = -1.0;
-  std::string param_distortion_model_ = "none";
-  std::vector<double> param_distortion_;
-  std::string backend_request_ = "auto";
-  std::string output_frame_;
-  std::string world_frame_ = "visual_gyro_world";
-  bool publish_tf_ = false;
-  std::string tf_child_frame_ = "visual_gyro_camera";
-  int mono16_bit_depth_ = 0;  ///< mono16 scaling: 0 = per frame, else the camera's bit depth
-  Config config_;
-  bool have_config_ = false;
-
-  // --- pipeline state ---
+  std::mutex frame_mutex_;  ///< 2: guards the pipeline state below
   std::unique_ptr<VisualGyro> pipeline_;
+  uint64_t applied_config_version_ = 0;  ///< the live settings the pipeline runs with
   CameraModel camera_;
   bool have_camera_ = false;
-  CameraModel failed_camera_;       ///< the last camera that could not be used (not retried)
+  CameraModel failed_camera_;  ///< the last camera that could not be used (not retried)
   bool have_failed_camera_ = false;
-  bool have_previous_ = false;      ///< the pipeline holds a previous frame
+  bool have_previous_ = false;  ///< the pipeline holds a previous frame
   double previous_stamp_ = 0.0;
-  bool reset_pending_ = false;      ///< reset before the next frame (inputs were re-subscribed)
-  Eigen::Matrix3d integrated_ = Eigen::Matrix3d::Identity();  ///< camera frame, since reset
-  std::string backend_used_;
-  std::string last_warning_;
-  std::string parameter_problem_;  ///< a private parameter read at start is unusable
+  std::string backend_used_, backend_warning_;
 
-  // --- output frame ---
-  std::string cached_tf_key_;
-  Eigen::Matrix3d cached_output_rotation_ = Eigen::Matrix3d::Identity();
-  ros::WallTime cached_tf_time_;
-  bool have_cached_tf_ = false;
-
-  // --- yaw plot ---
-  YawPlot yaw_plot_;
-
-  // --- health (counts, causes; /diagnostics) ---
-  NodeDiagnostics health_;
+  std::mutex config_mutex_;  ///< 3: guards the accepted live settings below
+  Config config_;
+  VisualGyroSettings settings_;  ///< the pipeline settings of config_ (through the settings table)
+  bool have_config_ = false;
+  uint64_t config_version_ = 0;  ///< counts accepted changes
 };
 
 }  // namespace visual_gyro

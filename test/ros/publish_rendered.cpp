@@ -9,8 +9,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/image_encodings.h>
 
-#include "ros_conversions.h"
-#include "visual_gyro/camera_model.h"
+#include "ros_test_support.h"
 #include "visual_gyro/renderer.h"
 
 int main(int argc, char** argv) {
@@ -24,28 +23,15 @@ int main(int argc, char** argv) {
   pnh.param("period_frames", period, period);
   pnh.param<std::string>("frame_id", frame_id, "test_camera_optical");
 
-  visual_gyro::RenderSettings settings;
-  settings.preset = visual_gyro::RenderPreset::kHandheld;
-  settings.setCentredCamera(320, 240, 250.0);
-  settings.noise_sigma = 1.0;
+  namespace vgt = visual_gyro::ros_test;
+  const visual_gyro::RenderSettings settings = vgt::handheldScene();
   std::vector<sensor_msgs::Image> images;
   for (int k = 0; k < period; ++k) {
-    const double yaw = amplitude_deg * M_PI / 180.0 * std::sin(2.0 * M_PI * k / period);
-    const cv::Mat gray = visual_gyro::renderView(
-        settings, Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()).toRotationMatrix(), Eigen::Vector3d::Zero());
-    sensor_msgs::Image m;
-    m.header.frame_id = frame_id;
-    m.width = static_cast<uint32_t>(gray.cols);
-    m.height = static_cast<uint32_t>(gray.rows);
-    m.encoding = sensor_msgs::image_encodings::MONO8;
-    m.step = m.width;
-    m.data.resize(static_cast<size_t>(m.step) * m.height);
-    for (int r = 0; r < gray.rows; ++r) std::copy(gray.ptr<uint8_t>(r), gray.ptr<uint8_t>(r) + gray.cols, &m.data[r * m.step]);
-    images.push_back(m);
+    const double yaw_deg = amplitude_deg * std::sin(2.0 * M_PI * k / period);
+    const cv::Mat gray = visual_gyro::renderView(settings, vgt::yawRight(yaw_deg), Eigen::Vector3d::Zero());
+    images.push_back(vgt::imageMsg(gray, sensor_msgs::image_encodings::MONO8, 0.0, frame_id));
   }
-  sensor_msgs::CameraInfo info = visual_gyro::ros_conversions::cameraInfoFromModel(visual_gyro::CameraModel(
-      settings.fx, settings.fy, settings.cx, settings.cy, settings.width, settings.height));
-  info.header.frame_id = frame_id;
+  sensor_msgs::CameraInfo info = vgt::cameraInfo(settings, frame_id);
 
   image_transport::ImageTransport it(nh);
   image_transport::CameraPublisher pub = it.advertiseCamera("image", 1);

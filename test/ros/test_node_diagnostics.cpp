@@ -98,3 +98,23 @@ TEST(NodeDiagnostics, ResetStormsAndInvalidEstimatesWarn) {
   EXPECT_EQ(s.level, Level::WARN);
   EXPECT_NE(s.message.find("too few matches"), std::string::npos) << s.message;
 }
+
+TEST(NodeDiagnostics, RejectedChangeWarnsUntilAChangeIsAccepted) {
+  NodeDiagnostics d(0.0);
+  d.setRejectedChange("rotation_window_deg 6 -> 90: rotation_window_deg must be in (0, 90)");
+  for (int k = 0; k < 10; ++k) {
+    d.imageIn(100.0 + 0.1 * k);
+    d.processed();
+    d.estimatePublished(true, "", 5.0, 500, 0.5);
+  }
+  auto s = fill(&d, 1.0);
+  EXPECT_EQ(s.level, Level::WARN);
+  EXPECT_EQ(s.message, "rejected settings change: rotation_window_deg 6 -> 90: rotation_window_deg must be in (0, 90)");
+  EXPECT_EQ(value(s, "Rejected settings change"), "rotation_window_deg 6 -> 90: rotation_window_deg must be in (0, 90)");
+  // Unusable settings (no output at all) still win.
+  d.setSettingsProblem("bad");
+  EXPECT_EQ(fill(&d, 2.0).level, Level::ERROR);
+  d.setSettingsProblem("");
+  d.setRejectedChange("");
+  EXPECT_EQ(fill(&d, 3.0).message.find("rejected"), std::string::npos);
+}

@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <dynamic_reconfigure/Reconfigure.h>
+#include <dynamic_reconfigure/client.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <opencv2/core.hpp>
 #include <ros/ros.h>
@@ -24,86 +25,42 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/image_encodings.h>
 
+#include "ros_test_support.h"
 #include "visual_gyro/RotationEstimate.h"
+#include "visual_gyro/VisualGyroConfig.h"
 #include "visual_gyro/renderer.h"
 
 namespace {
 
 using visual_gyro::RotationEstimate;
+using visual_gyro::ros_test::waitFor;
+namespace vgt = visual_gyro::ros_test;
 namespace enc = sensor_msgs::image_encodings;
 constexpr double kDeg = M_PI / 180.0;
 const char* kNs = "/visual_gyro";
 
-bool waitFor(const std::function<bool()>& pred, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return pred();
-}
-
-visual_gyro::RenderSettings scene() {
-  visual_gyro::RenderSettings s;
-  s.preset = visual_gyro::RenderPreset::kHandheld;
-  s.setCentredCamera(320, 240, 250.0);
-  s.noise_sigma = 1.0;
-  return s;
-}
-
 /// Views of a right turn, 1 degree per frame.
-const std::vector<cv::Mat>& turn() {
-  static std::vector<cv::Mat> images;
-  if (images.empty()) {
-    for (int k = 0; k < 12; ++k) {
-      images.push_back(visual_gyro::renderView(
-          scene(), Eigen::AngleAxisd(k * kDeg, Eigen::Vector3d::UnitY()).toRotationMatrix(), Eigen::Vector3d::Zero()));
-    }
-  }
-  return images;
-}
+const std::vector<cv::Mat>& turn() { return vgt::turnViews(); }
 
-class Harness {
+/// Image and camera_info publishers (separate, so either can be missing or wrong) and the
+/// recorder of the node's outputs, diagnostics and log lines.
+class Harness : public vgt::OutputRecorder {
  public:
-  Harness() {
+  Harness() : OutputRecorder(kNs) {
     image_pub_ = nh_.advertise<sensor_msgs::Image>("/rel_camera/image_raw", 5);
     info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("/rel_camera/camera_info", 5);
-    const auto s = scene();
-    info_.width = s.width;
-    info_.height = s.height;
-    info_.distortion_model = "plumb_bob";
-    info_.D.assign(5, 0.0);
-    info_.K = {s.fx, 0, s.cx, 0, s.fy, s.cy, 0, 0, 1};
-    info_.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    info_.P = {s.fx, 0, s.cx, 0, 0, s.fy, s.cy, 0, 0, 0, 1, 0};
-    imu_sub_ = nh_.subscribe(std::string(kNs) + "/imu", 100, &Harness::imuCb, this);
-    rotation_sub_ = nh_.subscribe(std::string(kNs) + "/rotation", 100, &Harness::rotationCb, this);
-    orientation_sub_ = nh_.subscribe(std::string(kNs) + "/orientation", 100, &Harness::orientationCb, this);
-    diag_sub_ = nh_.subscribe("/diagnostics", 100, &Harness::diagCb, this);
-    rosout_sub_ = nh_.subscribe("/rosout", 1000, &Harness::rosoutCb, this);
+    info_ = vgt::cameraInfo(vgt::handheldScene(), "rel_camera_optical");
+    subscribeOutputs();
+    watchDiagnosticsAndLogs();
   }
 
   sensor_msgs::CameraInfo info() const { return info_; }
-
-  static sensor_msgs::Image imageMsg(const cv::Mat& image, const std::string& encoding, double stamp) {
-    sensor_msgs::Image msg;
-    msg.header.stamp.fromSec(stamp);
-    msg.header.frame_id = "rel_camera_optical";
-    msg.height = static_cast<uint32_t>(image.rows);
-    msg.width = static_cast<uint32_t>(image.cols);
-    msg.encoding = encoding;
-    msg.step = static_cast<uint32_t>(image.cols * image.elemSize());
-    msg.data.resize(static_cast<size_t>(msg.step) * image.rows);
-    for (int r = 0; r < image.rows; ++r)
-      std::memcpy(&msg.data[static_cast<size_t>(r) * msg.step], image.ptr(r), msg.step);
-    return msg;
-  }
 
   /// Publishes an image (and, when `with_info`, the camera_info of the same stamp); true when the
   /// node answered with an ~orientation within `timeout` seconds.
   bool send(const cv::Mat& image, double stamp, double timeout = 5.0, const std::string& encoding = enc::MONO8,
             bool with_info = true, const sensor_msgs::CameraInfo* info_override = nullptr) {
-    const sensor_msgs::Image msg = imageMsg(image, encoding, stamp);
+    const sensor_msgs::Image msg = vgt::imageMsg(image, encoding, stamp, "rel_camera_optical");
     sensor_msgs::CameraInfo info = info_override ? *info_override : info_;
     info.header = msg.header;
     const int before = orientations();
@@ -117,83 +74,9 @@ class Harness {
                    timeout);
   }
 
-  int orientations() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return orientation_count_;
-  }
-  std::vector<RotationEstimate> rotations() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return rotation_msgs_;
-  }
-  std::vector<sensor_msgs::Imu> imus() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return imu_msgs_;
-  }
-  void clear() {
-    std::lock_guard<std::mutex> l(mutex_);
-    rotation_msgs_.clear();
-    imu_msgs_.clear();
-    diag_.clear();
-    logs_.clear();
-  }
-  /// Diagnostics statuses of the node received since the last clear(): (level, message).
-  std::vector<std::pair<int, std::string>> diagnostics() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return diag_;
-  }
-  /// Waits until a status of `level` whose message contains `needle` arrives.
-  bool waitDiagnostic(int level, const std::string& needle, double timeout) {
-    return waitFor(
-        [&] {
-          for (const auto& d : diagnostics())
-            if (d.first == level && d.second.find(needle) != std::string::npos) return true;
-          return false;
-        },
-        timeout);
-  }
-  /// Log lines of the node containing `needle` since the last clear().
-  int logLines(const std::string& needle) {
-    std::lock_guard<std::mutex> l(mutex_);
-    int n = 0;
-    for (const auto& line : logs_)
-      if (line.find(needle) != std::string::npos) ++n;
-    return n;
-  }
-  void settle() { ros::WallDuration(0.3).sleep(); }
-
  private:
-  void imuCb(const sensor_msgs::ImuConstPtr& m) {
-    std::lock_guard<std::mutex> l(mutex_);
-    imu_msgs_.push_back(*m);
-  }
-  void rotationCb(const visual_gyro::RotationEstimateConstPtr& m) {
-    std::lock_guard<std::mutex> l(mutex_);
-    rotation_msgs_.push_back(*m);
-  }
-  void orientationCb(const geometry_msgs::PoseStampedConstPtr&) {
-    std::lock_guard<std::mutex> l(mutex_);
-    ++orientation_count_;
-  }
-  void diagCb(const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
-    std::lock_guard<std::mutex> l(mutex_);
-    for (const auto& s : a->status)
-      if (s.name.find("visual_gyro") != std::string::npos) diag_.emplace_back(s.level, s.message);
-  }
-  void rosoutCb(const rosgraph_msgs::LogConstPtr& m) {
-    std::lock_guard<std::mutex> l(mutex_);
-    if (m->name.find("visual_gyro") != std::string::npos) logs_.push_back(m->msg);
-  }
-
-  ros::NodeHandle nh_;
   ros::Publisher image_pub_, info_pub_;
   sensor_msgs::CameraInfo info_;
-  ros::Subscriber imu_sub_, rotation_sub_, orientation_sub_, diag_sub_, rosout_sub_;
-  std::mutex mutex_;
-  int orientation_count_ = 0;
-  std::vector<RotationEstimate> rotation_msgs_;
-  std::vector<sensor_msgs::Imu> imu_msgs_;
-  std::vector<std::pair<int, std::string>> diag_;
-  std::vector<std::string> logs_;
 };
 
 Harness* g_harness = nullptr;
@@ -359,34 +242,79 @@ TEST(ReliabilityRos, MaxRateIsLiveAndNamesTheReason) {
   EXPECT_TRUE(h.rotations().back().valid) << h.rotations().back().status;
 }
 
-TEST(ReliabilityRos, TooFineBinsAreRefusedLive) {
+TEST(ReliabilityRos, TooFineBinsAreWidenedLive) {
   Harness& h = *g_harness;
   h.clear();
+  // Below the cfg's range: the server clamps it to 0.01 deg, which the estimator widens to fit its
+  // window, so the change is accepted and the frames are still estimated.
   ASSERT_TRUE(reconfigure("rotation_bin_deg", 1e-12));
-  EXPECT_TRUE(waitFor([&] { return h.logLines("rejected settings") > 0; }, 3.0)) << "no error line";
   const double t0 = 900.0;
   for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
   h.settle();
   const auto rotations = h.rotations();
   ASSERT_EQ(rotations.size(), 2u);
-  // The previous settings (0.5 deg cells) still estimate.
   for (const auto& r : rotations) {
     EXPECT_TRUE(r.valid) << r.status;
     EXPECT_GT(r.matches, 100u);
   }
+  EXPECT_EQ(h.logLines("rejected settings"), 0);
+  ASSERT_TRUE(reconfigure("rotation_bin_deg", 0.5));
+}
+
+TEST(ReliabilityRos, RejectedLiveChangeKeepsThePreviousSettingsAndWarns) {
+  Harness& h = *g_harness;
+  h.clear();
+  dynamic_reconfigure::Client<visual_gyro::VisualGyroConfig> client(kNs);
+  visual_gyro::VisualGyroConfig before;
+  ASSERT_TRUE(client.getCurrentConfiguration(before, ros::Duration(10.0)));
+  // The server clamps numbers to the cfg's ranges (the settings table's), but passes any text: a
+  // method the settings table does not know reaches the node, whose validation refuses it.
+  visual_gyro::VisualGyroConfig wanted = before;
+  wanted.method = "nonsense";
+  ASSERT_TRUE(client.setConfiguration(wanted));
+  // The server answers, publishes and stores the settings still in use.
+  visual_gyro::VisualGyroConfig now;
+  ASSERT_TRUE(client.getCurrentConfiguration(now, ros::Duration(5.0)));
+  EXPECT_EQ(now.method, before.method);
+  std::string stored_method;
+  ASSERT_TRUE(ros::param::get(std::string(kNs) + "/method", stored_method));
+  EXPECT_EQ(stored_method, before.method) << "the parameter server holds the rejected value";
+  // One error line naming the setting, and a WARN on /diagnostics until a change is accepted.
+  EXPECT_TRUE(waitFor([&] { return h.logLines("rejected settings change method vote -> nonsense") > 0; }, 3.0));
+  EXPECT_EQ(h.logLines("rejected settings change"), 1);
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "rejected settings change: method", 3.0));
+  const double t0 = 1000.0;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
+  h.settle();
+  for (const auto& r : h.rotations()) EXPECT_TRUE(r.valid) << r.status;
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "rejected settings change", 3.0)) << "the WARN did not last";
+
+  wanted = before;
+  wanted.rotation_window_deg = 8.0;
+  ASSERT_TRUE(client.setConfiguration(wanted));
+  h.clear();
+  EXPECT_TRUE(waitFor(
+      [&] {
+        const auto d = h.diagnostics();
+        return !d.empty() && d.back().second.find("rejected") == std::string::npos;
+      },
+      3.0))
+      << "the WARN outlived an accepted change";
+  double stored = 0.0;
+  ASSERT_TRUE(ros::param::get(std::string(kNs) + "/rotation_window_deg", stored));
+  EXPECT_EQ(stored, 8.0);
+  wanted.rotation_window_deg = before.rotation_window_deg;
+  ASSERT_TRUE(client.setConfiguration(wanted));
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_reliability_ros");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  Harness harness;
-  g_harness = &harness;
-  const int result = RUN_ALL_TESTS();
-  spinner.stop();
-  g_harness = nullptr;
-  return result;
+  return vgt::runRosTests(argc, argv, "test_reliability_ros", 2, [] {
+    Harness harness;
+    g_harness = &harness;
+    const int result = RUN_ALL_TESTS();
+    g_harness = nullptr;
+    return result;
+  });
 }

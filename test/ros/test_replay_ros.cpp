@@ -16,6 +16,7 @@
 
 #include "bag_tools.h"
 #include "frame_player.h"
+#include "ros_test_support.h"
 #include "test_support.h"
 #include "visual_gyro/sequence.h"
 
@@ -160,11 +161,5 @@ TEST(VisualGyroReplay, KittiTurnJpegCompressed) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_replay_ros");
-  ros::AsyncSpinner spinner(1);
-  spinner.start();
-  const int result = RUN_ALL_TESTS();
-  spinner.stop();
-  return result;
+  return visual_gyro::ros_test::runRosTests(argc, argv, "test_replay_ros", 1, [] { return RUN_ALL_TESTS(); });
 }

@@ -22,6 +22,7 @@
 
 #include "bag_tools.h"
 #include "frame_player.h"
+#include "ros_test_support.h"
 #include "test_support.h"
 #include "visual_gyro/RotationEstimate.h"
 #include "visual_gyro/sequence.h"
@@ -137,11 +138,5 @@ TEST(RosbagReplay, KittiTurnAtRateOneMatchesFrameByFrame) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_rosbag_replay");
-  ros::AsyncSpinner spinner(1);
-  spinner.start();
-  const int result = RUN_ALL_TESTS();
-  spinner.stop();
-  return result;
+  return visual_gyro::ros_test::runRosTests(argc, argv, "test_rosbag_replay", 1, [] { return RUN_ALL_TESTS(); });
 }

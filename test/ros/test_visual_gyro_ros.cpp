@@ -25,6 +25,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 
 #include "ros_conversions.h"
+#include "ros_test_support.h"
 #include "visual_gyro/RotationEstimate.h"
 #include "visual_gyro/renderer.h"
 #include "visual_gyro/rotation_estimator.h"
@@ -32,7 +33,9 @@
 namespace {
 
 using visual_gyro::RotationEstimate;
+using visual_gyro::ros_test::waitFor;
 namespace conv = visual_gyro::ros_conversions;
+namespace vgt = visual_gyro::ros_test;
 constexpr double kDeg = M_PI / 180.0;
 
 std::string g_output_ns = "/visual_gyro";
@@ -53,71 +56,20 @@ std::string expectedFrame() { return g_output_frame.empty() ? std::string(kCamer
 /// A rotation R of the camera expressed in the output frame: T R T^T.
 Eigen::Matrix3d inOutput(const Eigen::Matrix3d& r) { return g_to_output * r * g_to_output.transpose(); }
 
-/// Waits until pred() holds or `timeout` seconds pass (the AsyncSpinner delivers the messages).
-bool waitFor(const std::function<bool()>& pred, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return pred();
-}
-
-visual_gyro::RenderSettings renderSettings() {
-  visual_gyro::RenderSettings s;
-  s.preset = visual_gyro::RenderPreset::kHandheld;  // a room around the camera: rotation-only views are well textured
-  s.setCentredCamera(320, 240, 250.0);
-  s.noise_sigma = 1.0;
-  return s;
-}
-
-/// Camera orientation (camera -> world) turning right by `yaw_deg` about the camera's +y (down).
-Eigen::Matrix3d yawOrientation(double yaw_deg) {
-  return Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitY()).toRotationMatrix();
-}
-
-/// The shared publisher, output subscribers and collected messages.
-class Harness {
+/// The shared publisher and the recorder of the node's outputs.
+class Harness : public vgt::OutputRecorder {
  public:
-  Harness() : it_(nh_) {
+  Harness() : OutputRecorder(g_output_ns), it_(nh_) {
     camera_pub_ = it_.advertiseCamera(g_image_topic, 5);
-    const auto s = renderSettings();
-    info_.width = s.width;
-    info_.height = s.height;
-    info_.distortion_model = "plumb_bob";
-    info_.D.assign(5, 0.0);
-    info_.K = {s.fx, 0, s.cx, 0, s.fy, s.cy, 0, 0, 1};
-    info_.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    info_.P = {s.fx, 0, s.cx, 0, 0, s.fy, s.cy, 0, 0, 0, 1, 0};
-    info_.header.frame_id = kCameraFrame;
+    info_ = vgt::cameraInfo(vgt::handheldScene(), kCameraFrame);
   }
 
-  void subscribeOutputs() {
-    imu_sub_ = nh_.subscribe(g_output_ns + "/imu", 100, &Harness::imuCb, this);
-    rotation_sub_ = nh_.subscribe(g_output_ns + "/rotation", 100, &Harness::rotationCb, this);
-    orientation_sub_ = nh_.subscribe(g_output_ns + "/orientation", 100, &Harness::orientationCb, this);
-  }
-  void unsubscribeOutputs() {
-    imu_sub_.shutdown();
-    rotation_sub_.shutdown();
-    orientation_sub_.shutdown();
-  }
   int imageSubscribers() const { return static_cast<int>(camera_pub_.getNumSubscribers()); }
 
   /// Publishes one frame; true when the node answered (one ~orientation per processed frame)
   /// within `timeout` seconds.
   bool send(const cv::Mat& image, const std::string& encoding, double stamp, double timeout = 10.0) {
-    sensor_msgs::Image msg;
-    msg.header.stamp.fromSec(stamp);
-    msg.header.frame_id = kCameraFrame;
-    msg.height = static_cast<uint32_t>(image.rows);
-    msg.width = static_cast<uint32_t>(image.cols);
-    msg.encoding = encoding;
-    msg.is_bigendian = 0;
-    msg.step = static_cast<uint32_t>(image.cols * image.elemSize());
-    msg.data.resize(static_cast<size_t>(msg.step) * image.rows);
-    for (int r = 0; r < image.rows; ++r)
-      std::memcpy(&msg.data[static_cast<size_t>(r) * msg.step], image.ptr(r), msg.step);
+    const sensor_msgs::Image msg = vgt::imageMsg(image, encoding, stamp, kCameraFrame);
     sensor_msgs::CameraInfo info = info_;
     info.header.stamp = msg.header.stamp;
     const int before = orientations();
@@ -135,67 +87,16 @@ class Harness {
     return true;
   }
 
-  int orientations() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return static_cast<int>(orientation_msgs_.size());
-  }
-  std::vector<RotationEstimate> rotations() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return rotation_msgs_;
-  }
-  std::vector<sensor_msgs::Imu> imus() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return imu_msgs_;
-  }
-  std::vector<geometry_msgs::PoseStamped> orientationMsgs() {
-    std::lock_guard<std::mutex> l(mutex_);
-    return orientation_msgs_;
-  }
-  void clear() {
-    std::lock_guard<std::mutex> l(mutex_);
-    rotation_msgs_.clear();
-    imu_msgs_.clear();
-    orientation_msgs_.clear();
-  }
-  /// Waits briefly for the ~rotation/~imu messages published just before the last ~orientation.
-  void settle() { ros::WallDuration(0.3).sleep(); }
-
  private:
-  void imuCb(const sensor_msgs::ImuConstPtr& m) {
-    std::lock_guard<std::mutex> l(mutex_);
-    imu_msgs_.push_back(*m);
-  }
-  void rotationCb(const visual_gyro::RotationEstimateConstPtr& m) {
-    std::lock_guard<std::mutex> l(mutex_);
-    rotation_msgs_.push_back(*m);
-  }
-  void orientationCb(const geometry_msgs::PoseStampedConstPtr& m) {
-    std::lock_guard<std::mutex> l(mutex_);
-    orientation_msgs_.push_back(*m);
-  }
-
-  ros::NodeHandle nh_;
   image_transport::ImageTransport it_;
   image_transport::CameraPublisher camera_pub_;
   sensor_msgs::CameraInfo info_;
-  ros::Subscriber imu_sub_, rotation_sub_, orientation_sub_;
-  std::mutex mutex_;
-  std::vector<RotationEstimate> rotation_msgs_;
-  std::vector<sensor_msgs::Imu> imu_msgs_;
-  std::vector<geometry_msgs::PoseStamped> orientation_msgs_;
 };
 
 Harness* g_harness = nullptr;
 
-/// Rendered views of a right turn, 1 degree per frame, cached.
-const std::vector<cv::Mat>& turnImages() {
-  static std::vector<cv::Mat> images;
-  if (images.empty()) {
-    const auto s = renderSettings();
-    for (int k = 0; k < 8; ++k) images.push_back(visual_gyro::renderView(s, yawOrientation(k), Eigen::Vector3d::Zero()));
-  }
-  return images;
-}
+/// Rendered views of a right turn, 1 degree per frame.
+const std::vector<cv::Mat>& turnImages() { return vgt::turnViews(); }
 
 bool outputAdvertised() {
   ros::master::V_TopicInfo topics;
@@ -256,7 +157,7 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
   const auto rotations = h.rotations();
   const auto imus = h.imus();
   ASSERT_EQ(rotations.size(), images.size() - 1) << "one RotationEstimate per frame after the first";
-  const Eigen::Matrix3d r_true = yawOrientation(1.0);  // R_{k-1}^T R_k
+  const Eigen::Matrix3d r_true = vgt::yawRight(1.0);  // R_{k-1}^T R_k
   const Eigen::Vector3d omega_true(0.0, 1.0 * kDeg / dt, 0.0);
   for (size_t k = 1; k < images.size(); ++k) {
     SCOPED_TRACE("frame " + std::to_string(k));
@@ -314,12 +215,12 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
     for (int i = 0; i < 9; ++i) EXPECT_DOUBLE_EQ(imu.angular_velocity_covariance[i], m->angular_velocity_covariance[i]);
   }
 
-  // The integrated orientation turned right by 7 degrees.
+  // The integrated orientation turned right by 1 degree per frame.
   const auto poses = h.orientationMsgs();
   ASSERT_EQ(poses.size(), images.size());
   EXPECT_EQ(poses.back().header.frame_id, "visual_gyro_world");
   const Eigen::Matrix3d integrated = conv::fromMsg(poses.back().pose.orientation).toRotationMatrix();
-  EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, inOutput(yawOrientation(7.0))) / kDeg, 0.5);
+  EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, inOutput(vgt::yawRight(images.size() - 1.0))) / kDeg, 0.5);
   EXPECT_LT(visual_gyro::rotationAngleBetween(conv::fromMsg(poses.front().pose.orientation).toRotationMatrix(),
                                               Eigen::Matrix3d::Identity()), 1e-9);
 }
@@ -444,31 +345,28 @@ TEST(VisualGyroRos, UnsupportedEncodingIsSkippedAndTheNodeKeepsRunning) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_visual_gyro_ros");
-  ros::NodeHandle pnh("~");
-  pnh.param<std::string>("output_ns", g_output_ns, g_output_ns);
-  pnh.param<std::string>("image_topic", g_image_topic, g_image_topic);
-  pnh.param<std::string>("output_frame", g_output_frame, "");
-  std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_tf;
-  if (!g_output_frame.empty()) {
-    // A body frame (REP 103: x forward, y left, z up) of the optical frame (x right, y down, z fwd).
-    g_to_output << 0, 0, 1, -1, 0, 0, 0, -1, 0;
-    geometry_msgs::TransformStamped t;
-    t.header.stamp = ros::Time::now();
-    t.header.frame_id = g_output_frame;
-    t.child_frame_id = kCameraFrame;
-    t.transform.translation.x = 0.2;
-    t.transform.rotation = conv::toMsg(Eigen::Quaterniond(g_to_output));
-    static_tf.reset(new tf2_ros::StaticTransformBroadcaster());
-    static_tf->sendTransform(t);
-  }
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  Harness harness;
-  g_harness = &harness;
-  const int result = RUN_ALL_TESTS();
-  spinner.stop();
-  g_harness = nullptr;
-  return result;
+  return vgt::runRosTests(argc, argv, "test_visual_gyro_ros", 2, [] {
+    ros::NodeHandle pnh("~");
+    pnh.param<std::string>("output_ns", g_output_ns, g_output_ns);
+    pnh.param<std::string>("image_topic", g_image_topic, g_image_topic);
+    pnh.param<std::string>("output_frame", g_output_frame, "");
+    std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_tf;
+    if (!g_output_frame.empty()) {
+      // A body frame (REP 103: x forward, y left, z up) of the optical frame (x right, y down, z fwd).
+      g_to_output << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+      geometry_msgs::TransformStamped t;
+      t.header.stamp = ros::Time::now();
+      t.header.frame_id = g_output_frame;
+      t.child_frame_id = kCameraFrame;
+      t.transform.translation.x = 0.2;
+      t.transform.rotation = conv::toMsg(Eigen::Quaterniond(g_to_output));
+      static_tf.reset(new tf2_ros::StaticTransformBroadcaster());
+      static_tf->sendTransform(t);
+    }
+    Harness harness;
+    g_harness = &harness;
+    const int result = RUN_ALL_TESTS();
+    g_harness = nullptr;
+    return result;
+  });
 }
