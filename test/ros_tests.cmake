@@ -26,9 +26,8 @@ catkin_add_gtest(test_output_messages test/ros/test_output_messages.cpp)
 target_link_libraries(test_output_messages visual_gyro_ros_tools ${catkin_LIBRARIES} gtest_main)
 
 # The node's diagnostics summary without a master (which cause wins, at which level).
-catkin_add_gtest(test_node_diagnostics test/ros/test_node_diagnostics.cpp src/ros/node_diagnostics.cpp)
-target_include_directories(test_node_diagnostics PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
-target_link_libraries(test_node_diagnostics ${catkin_LIBRARIES} gtest_main)
+catkin_add_gtest(test_node_diagnostics test/ros/test_node_diagnostics.cpp)
+target_link_libraries(test_node_diagnostics visual_gyro_ros_common gtest_main)
 
 # Bad ROS input: plausibility, frozen frames, mono16, calibration, diagnostics and throttled logs.
 add_rostest_gtest(test_reliability_ros test/ros/reliability.test test/ros/test_reliability_ros.cpp)

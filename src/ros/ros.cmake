@@ -6,30 +6,29 @@
 #   summarize_outputs     errors of the recorded outputs against the bag's ground truth (demo JSON)
 #   integrate_imu         the recorded ~imu integrated as a filter does, orientation error over time
 
-# The workspace holds the package as a shadow folder of links to the repository's entries
-# (scripts/build.sh), so the source folder's real path is not the checkout: resolve the checkout
-# through a file inside it (the shared data lives beside the real checkout).
-get_filename_component(VISUAL_GYRO_REPO_DIR "${CMAKE_CURRENT_SOURCE_DIR}/package.xml" REALPATH)
-get_filename_component(VISUAL_GYRO_REPO_DIR "${VISUAL_GYRO_REPO_DIR}" DIRECTORY)
-get_filename_component(VISUAL_GYRO_DEFAULT_DATA "${VISUAL_GYRO_REPO_DIR}/../shared/data" ABSOLUTE)
-
 set(VISUAL_GYRO_ROS_INCLUDES
   ${CMAKE_CURRENT_SOURCE_DIR}/src/ros
   ${CATKIN_DEVEL_PREFIX}/${CATKIN_GLOBAL_INCLUDE_DESTINATION}  # generated messages and config
   ${catkin_INCLUDE_DIRS})
 
-add_library(visual_gyro_nodelet
-  src/ros/visual_gyro_nodelet.cpp
-  src/ros/node_parameters.cpp
-  src/ros/input_probe.cpp
-  src/ros/reconfigure_settings.cpp
-  src/ros/output_publisher.cpp
-  src/ros/node_diagnostics.cpp
+# The node's parts that the ROS tools and tests use too (messages, plot, inputs, diagnostics).
+add_library(visual_gyro_ros_common
   src/ros/ros_conversions.cpp
   src/ros/yaw_plot.cpp
-  src/ros/compressed_input.cpp)
-target_include_directories(visual_gyro_nodelet PRIVATE ${VISUAL_GYRO_ROS_INCLUDES})
-target_link_libraries(visual_gyro_nodelet visual_gyro_core ${catkin_LIBRARIES})
+  src/ros/compressed_input.cpp
+  src/ros/output_publisher.cpp
+  src/ros/node_parameters.cpp
+  src/ros/node_diagnostics.cpp)
+target_include_directories(visual_gyro_ros_common PUBLIC ${VISUAL_GYRO_ROS_INCLUDES})
+target_link_libraries(visual_gyro_ros_common PUBLIC visual_gyro_core ${catkin_LIBRARIES})
+add_dependencies(visual_gyro_ros_common ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
+target_compile_options(visual_gyro_ros_common PRIVATE -Wall -Wextra)
+
+add_library(visual_gyro_nodelet
+  src/ros/visual_gyro_nodelet.cpp
+  src/ros/input_probe.cpp
+  src/ros/reconfigure_settings.cpp)
+target_link_libraries(visual_gyro_nodelet visual_gyro_ros_common)
 add_dependencies(visual_gyro_nodelet ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
 target_compile_options(visual_gyro_nodelet PRIVATE -Wall -Wextra)
 
@@ -44,16 +43,8 @@ add_dependencies(visual_gyro_node visual_gyro_nodelet)
 add_library(visual_gyro_ros_tools STATIC
   src/ros/bag_tools.cpp
   src/ros/frame_player.cpp
-  src/ros/ros_conversions.cpp
-  src/ros/yaw_plot.cpp
-  src/ros/compressed_input.cpp
-  src/ros/imu_integration.cpp
-  src/ros/output_publisher.cpp
-  src/ros/node_parameters.cpp
-  src/ros/node_diagnostics.cpp)
-target_include_directories(visual_gyro_ros_tools PUBLIC ${VISUAL_GYRO_ROS_INCLUDES})
-target_link_libraries(visual_gyro_ros_tools PUBLIC visual_gyro_eval visual_gyro_sim ${catkin_LIBRARIES})
-add_dependencies(visual_gyro_ros_tools ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
+  src/ros/imu_integration.cpp)
+target_link_libraries(visual_gyro_ros_tools PUBLIC visual_gyro_ros_common visual_gyro_eval visual_gyro_sim)
 target_compile_options(visual_gyro_ros_tools PRIVATE -Wall -Wextra)
 
 foreach(tool make_bag play_frames summarize_outputs integrate_imu)
@@ -61,7 +52,7 @@ foreach(tool make_bag play_frames summarize_outputs integrate_imu)
   target_link_libraries(${tool} visual_gyro_ros_tools visual_gyro_cli)
 endforeach()
 
-install(TARGETS visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs integrate_imu
+install(TARGETS visual_gyro_ros_common visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs integrate_imu
   ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
   LIBRARY DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
   RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
