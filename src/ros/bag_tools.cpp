@@ -16,6 +16,7 @@
 #include <sensor_msgs/image_encodings.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include "json_writer.h"
 #include "metrics.h"
 #include "ros_conversions.h"
 #include "visual_gyro/geometry.h"
@@ -45,22 +46,6 @@ boost::shared_ptr<ros::M_string> latchedHeader(const std::string& topic) {
   (*header)["callerid"] = "/make_bag";
   (*header)["latching"] = "1";
   return header;
-}
-
-std::string jsonNumber(double v, int precision = 4) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
-
-std::string jsonString(const std::string& v) {
-  std::string out = "\"";
-  for (char c : v) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
-  return out + "\"";
 }
 
 }  // namespace
@@ -304,7 +289,6 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
                               const BagContents& truth_bag, const std::string& dataset) {
   OutputSummary s;
   s.dataset = dataset;
-  s.frames = static_cast<int>(estimates.size());
   s.imu_published = imu_count;
   const Truth truth(truth_bag);
   // Scored as evaluate scores: an invalid estimate is the identity (metrics::scoreFrame).
@@ -313,7 +297,6 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
   for (const auto& e : estimates) {
     if (s.method.empty()) s.method = e.method;
     if (s.backend.empty()) s.backend = e.backend;
-    if (e.valid) ++s.valid_frames;
     detect += e.detect_ms;
     describe += e.describe_ms;
     match += e.match_ms;
@@ -345,16 +328,9 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
     }
     accuracy.add(e.valid, metrics::scoreFrame(frame, reference), reference);
   }
-  const metrics::AccuracySummary a = accuracy.summary();
-  s.compared = a.with_truth;
-  s.rot_rmse_deg = a.rot_rmse_deg;
-  s.rot_max_deg = a.rot_max_deg;
-  s.yaw_rmse_deg = a.yaw_rmse_deg;
-  s.yaw_max_deg = a.yaw_max_deg;
-  s.mean_rate_dps = a.mean_rate_dps;
-  s.rate_rmse_dps = a.rate_rmse_dps;
-  if (s.frames > 0) {
-    const double n = s.frames;
+  s.accuracy = accuracy.summary();
+  if (!estimates.empty()) {
+    const double n = static_cast<double>(estimates.size());
     s.detect_ms = detect / n;
     s.describe_ms = describe / n;
     s.match_ms = match / n;
@@ -366,29 +342,43 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
 }
 
 std::string OutputSummary::json() const {
-  std::ostringstream j;
-  j << "{\"dataset\": " << jsonString(dataset) << ", \"method\": " << jsonString(method)
-    << ", \"frames\": " << frames << ", \"rot_rmse_deg\": " << jsonNumber(rot_rmse_deg)
-    << ", \"rot_max_deg\": " << jsonNumber(rot_max_deg) << ", \"yaw_rmse_deg\": " << jsonNumber(yaw_rmse_deg)
-    << ", \"yaw_max_deg\": " << jsonNumber(yaw_max_deg) << ", \"mean_rate_dps\": " << jsonNumber(mean_rate_dps)
-    << ", \"rate_rmse_dps\": " << jsonNumber(rate_rmse_dps) << ", \"ms_per_frame\": {\"detect\": "
-    << jsonNumber(detect_ms, 3) << ", \"describe\": " << jsonNumber(describe_ms, 3)
-    << ", \"match\": " << jsonNumber(match_ms, 3) << ", \"estimate\": " << jsonNumber(estimate_ms, 3)
-    << ", \"total\": " << jsonNumber(total_ms, 3) << "}, \"imu_published\": " << imu_published
-    << ", \"latency_ms\": " << jsonNumber(latency_ms, 3) << ", \"invalid\": " << (frames - valid_frames)
-    << ", \"backend\": " << jsonString(backend) << ", \"source\": \"ros\"}";
+  JsonObject times;
+  times.add("detect", detect_ms).add("describe", describe_ms).add("match", match_ms).add("estimate", estimate_ms)
+      .add("total", total_ms);
+  JsonObject j;
+  j.add("dataset", dataset)
+      .add("method", method)
+      .add("frames", accuracy.frames)
+      .add("rot_rmse_deg", accuracy.rot_rmse_deg)
+      .add("rot_max_deg", accuracy.rot_max_deg)
+      .add("yaw_rmse_deg", accuracy.yaw_rmse_deg)
+      .add("yaw_max_deg", accuracy.yaw_max_deg)
+      .add("mean_rate_dps", accuracy.mean_rate_dps)
+      .add("rate_rmse_dps", accuracy.rate_rmse_dps)
+      .add("ms_per_frame", times)
+      .add("imu_published", imu_published)
+      .add("latency_ms", latency_ms)
+      .add("invalid", accuracy.invalid)
+      .add("backend", backend)
+      .add("source", "ros");
   return j.str();
 }
 
 std::string OutputSummary::text() const {
   std::ostringstream t;
-  auto num = [](double v, int p = 3) { return std::isfinite(v) ? jsonNumber(v, p) : std::string("n/a"); };
+  auto num = [](double v, int p = 3) {
+    if (!std::isfinite(v)) return std::string("n/a");
+    std::ostringstream out;
+    out << std::fixed << std::setprecision(p) << v;
+    return out.str();
+  };
+  const metrics::AccuracySummary& a = accuracy;
   t << "dataset " << dataset << ", method " << method << ", backend " << backend << " (through ROS)\n"
-    << "  RotationEstimate messages: " << frames << " (" << valid_frames << " valid, " << compared
+    << "  RotationEstimate messages: " << a.frames << " (" << a.frames - a.invalid << " valid, " << a.with_truth
     << " with ground truth); Imu messages: " << imu_published << "\n"
-    << "  rotation error per frame: RMSE " << num(rot_rmse_deg) << " deg, max " << num(rot_max_deg) << " deg\n"
-    << "  yaw error per frame:      RMSE " << num(yaw_rmse_deg) << " deg, max " << num(yaw_max_deg) << " deg\n"
-    << "  mean rate " << num(mean_rate_dps, 2) << " deg/s, rate RMSE vs gyro " << num(rate_rmse_dps) << " deg/s\n"
+    << "  rotation error per frame: RMSE " << num(a.rot_rmse_deg) << " deg, max " << num(a.rot_max_deg) << " deg\n"
+    << "  yaw error per frame:      RMSE " << num(a.yaw_rmse_deg) << " deg, max " << num(a.yaw_max_deg) << " deg\n"
+    << "  mean rate " << num(a.mean_rate_dps, 2) << " deg/s, rate RMSE vs gyro " << num(a.rate_rmse_dps) << " deg/s\n"
     << "  time per frame: detect " << num(detect_ms, 2) << " ms, describe " << num(describe_ms, 2) << " ms, match "
     << num(match_ms, 2) << " ms, estimate " << num(estimate_ms, 2) << " ms, total " << num(total_ms, 2)
     << " ms; latency image callback -> publish " << num(latency_ms, 2) << " ms";

@@ -15,6 +15,7 @@
 #include <sensor_msgs/Imu.h>
 
 #include "compressed_input.h"
+#include "metrics.h"
 #include "visual_gyro/RotationEstimate.h"
 #include "visual_gyro/sequence.h"
 
@@ -82,12 +83,10 @@ BagContents readSequenceBag(const std::string& bag_path, const BagTopics& topics
 /// Errors of the published estimates against the bag's ground truth (evaluate's JSON keys).
 struct OutputSummary {
   std::string dataset, method, backend;
-  int frames = 0;          ///< RotationEstimate messages
-  int valid_frames = 0;    ///< ... with valid = true
-  int compared = 0;        ///< ... with ground truth for both stamps
+  /// Over the RotationEstimate messages (frames, invalid, with_truth: with ground truth for both
+  /// stamps, the errors; rate RMSE against the gyro, else NaN), as the metrics module scores them.
+  metrics::AccuracySummary accuracy;
   int imu_published = 0;   ///< Imu messages
-  double rot_rmse_deg = NAN, rot_max_deg = NAN, yaw_rmse_deg = NAN, yaw_max_deg = NAN;
-  double mean_rate_dps = NAN, rate_rmse_dps = NAN;  ///< rate RMSE: against the gyro, else NaN
   double detect_ms = NAN, describe_ms = NAN, match_ms = NAN, estimate_ms = NAN, total_ms = NAN;
   double latency_ms = NAN;  ///< mean image-callback-to-publish wall time
 

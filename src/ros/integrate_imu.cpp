@@ -39,10 +39,8 @@ int run(int argc, char** argv) {
       step = args.doubleValue(1e-6, 1e6);
     } else if (args.is("--print-every")) {
       print_every = args.doubleValue(0.0, 1e9);
-    } else if (args.isOption() || positional.size() == 2) {
-      args.unexpected();
     } else {
-      positional.push_back(args.current());
+      args.positional(&positional, 2);
     }
   }
   if (positional.size() != 2) throw visual_gyro::cli::UsageError("a sequence bag and an outputs bag are needed");

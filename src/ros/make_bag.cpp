@@ -48,10 +48,8 @@ int run(int argc, char** argv) {
         throw UsageError("--compressed takes jpeg or png, not '" + format + "'");
     } else if (args.is("--jpeg-quality")) {
       options.jpeg_quality = static_cast<int>(args.intValue(1, 100));
-    } else if (args.isOption() || positional.size() == 2) {
-      args.unexpected();
     } else {
-      positional.push_back(args.current());
+      args.positional(&positional, 2);
     }
   }
   if (positional.size() != 2) throw UsageError("a sequence folder and an output bag are needed");

@@ -30,10 +30,8 @@ int run(int argc, char** argv) {
       ns = args.value();
     } else if (args.is("--dataset")) {
       dataset = args.value();
-    } else if (args.isOption() || positional.size() == 2) {
-      args.unexpected();
     } else {
-      positional.push_back(args.current());
+      args.positional(&positional, 2);
     }
   }
   if (positional.size() != 2) throw visual_gyro::cli::UsageError("a sequence bag and an outputs bag are needed");

@@ -89,6 +89,11 @@ std::vector<int> Arguments::intListValue(long long lo, long long hi) {
   return out;
 }
 
+void Arguments::positional(std::vector<std::string>* list, size_t max) const {
+  if (isOption() || list->size() >= max) unexpected();
+  list->push_back(current());
+}
+
 void Arguments::unexpected() const {
   if (isOption()) throw UsageError("unknown option " + current());
   throw UsageError("unexpected argument '" + current() + "'");

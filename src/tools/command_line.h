@@ -45,6 +45,9 @@ class Arguments {
   std::vector<std::string> listValue();
   /// The value as a non-empty comma-separated list of integers in [lo, hi].
   std::vector<int> intListValue(long long lo, long long hi);
+  /// Takes the current argument as the next positional one; unexpected() for an option, or when
+  /// `list` already holds `max` of them.
+  void positional(std::vector<std::string>* list, size_t max) const;
   /// Throws the UsageError for an unknown option or a surplus positional argument.
   [[noreturn]] void unexpected() const;
 

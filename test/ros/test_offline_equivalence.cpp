@@ -64,12 +64,12 @@ TEST(OfflineEquivalence, SameFramesAndRotationErrorsWithAnInvalidFrame) {
                                                     "handheld");
   std::printf("ROS:      %s\n", ros.json().c_str());
 
-  EXPECT_EQ(ros.frames, static_cast<int>(vt::jsonNumber(json, "frames")));
-  EXPECT_EQ(ros.frames - ros.valid_frames, static_cast<int>(vt::jsonNumber(json, "invalid")));
-  EXPECT_GE(ros.frames - ros.valid_frames, 1) << "the black image gave no invalid frame";
-  EXPECT_EQ(ros.compared, ros.frames);
-  EXPECT_NEAR(ros.rot_rmse_deg, vt::jsonNumber(json, "rot_rmse_deg"), 1e-4);
-  EXPECT_NEAR(ros.rot_max_deg, vt::jsonNumber(json, "rot_max_deg"), 1e-4);
+  EXPECT_EQ(ros.accuracy.frames, static_cast<int>(vt::jsonNumber(json, "frames")));
+  EXPECT_EQ(ros.accuracy.invalid, static_cast<int>(vt::jsonNumber(json, "invalid")));
+  EXPECT_GE(ros.accuracy.invalid, 1) << "the black image gave no invalid frame";
+  EXPECT_EQ(ros.accuracy.with_truth, ros.accuracy.frames);
+  EXPECT_NEAR(ros.accuracy.rot_rmse_deg, vt::jsonNumber(json, "rot_rmse_deg"), 1e-4);
+  EXPECT_NEAR(ros.accuracy.rot_max_deg, vt::jsonNumber(json, "rot_max_deg"), 1e-4);
   std::filesystem::remove_all(dir);
 }
 
