@@ -87,7 +87,7 @@ struct EstimatorSettings {
 /// On KITTI it is mostly the truth's own error: integer, sub-pixel and KLT matches give the same
 /// per-frame error there, 0.02-0.04 deg per axis. It is larger than the whole error of sub-pixel
 /// matches on EuRoC, which is why sub-pixel positions are not the default (README, "Covariance model").
-constexpr double kRotationCovarianceFloor = 0.035 * M_PI / 180.0;
+constexpr double kRotationCovarianceFloor = 0.035 * kDegToRad;
 
 /// Every estimator setting with its range, unit and doc (see setting_field.h).
 const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields();

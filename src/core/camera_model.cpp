@@ -1,5 +1,6 @@
 // Pinhole camera with optional lens distortion (plumb_bob / radial-tangential, equidistant).
 #include "visual_gyro/camera_model.h"
+#include "visual_gyro/geometry.h"
 
 #include <algorithm>
 #include <cctype>
@@ -227,8 +228,8 @@ std::string calibrationProblem(const CameraModel& camera) {
   // image. Rays are parametrised by the angle theta to the optical axis so that fisheye models
   // (which go beyond 90 deg) are covered too.
   const bool fisheye = camera.distortionModel() == DistortionModel::kEquidistant;
-  const double max_theta = (fisheye ? 179.0 : 89.0) * M_PI / 180.0;
-  constexpr double kThetaStep = 0.1 * M_PI / 180.0;
+  const double max_theta = (fisheye ? 179.0 : 89.0) * kDegToRad;
+  constexpr double kThetaStep = 0.1 * kDegToRad;
   constexpr int kDirections = 72;
   for (int d = 0; d < kDirections; ++d) {
     const double phi = 2.0 * M_PI * d / kDirections;
@@ -243,7 +244,7 @@ std::string calibrationProblem(const CameraModel& camera) {
                                        (pixel.y() - camera.cy()) / camera.fy());
       if (!(radius > previous_radius)) {
         why << "distortion coefficients fold the image: the distorted radius stops growing at "
-            << theta * 180.0 / M_PI << " deg from the optical axis, inside the image (pixel "
+            << theta * kRadToDeg << " deg from the optical axis, inside the image (pixel "
             << pixel.x() << ", " << pixel.y() << ")";
         return why.str();
       }

@@ -135,17 +135,9 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("estimate", s.estimate).add("total", s.total);
   if (std::isfinite(s.vote)) times.add("vote", s.vote).add("vote_device", s.vote_device).add("refine", s.refine);
   JsonObject j;
-  j.add("dataset", run.dataset)
-      .add("method", s.method)
-      .add("frames", a.frames)
-      .add("invalid", a.invalid)
-      .add("rot_rmse_deg", a.rot_rmse_deg)
-      .add("rot_max_deg", a.rot_max_deg)
-      .add("yaw_rmse_deg", a.yaw_rmse_deg)
-      .add("yaw_max_deg", a.yaw_max_deg)
-      .add("mean_rate_dps", a.mean_rate_dps)
-      .add("rate_rmse_dps", a.rate_rmse_dps)
-      .add("ms_per_frame", times)
+  j.add("dataset", run.dataset).add("method", s.method);
+  metrics::addAccuracyFields(a, &j);
+  j.add("ms_per_frame", times)
       .add("backend", s.backend)
       .add("matches_mean", s.matches_mean)
       .add("front_end", s.front_end)

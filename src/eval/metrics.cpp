@@ -5,6 +5,7 @@
 
 #include <Eigen/LU>
 
+#include "json_writer.h"
 #include "visual_gyro/geometry.h"
 
 namespace visual_gyro {
@@ -78,6 +79,17 @@ AccuracySummary AccuracyAccumulator::summary() const {
     s.nees_beyond99 = static_cast<double>(nees_beyond_) / s.with_nees;
   }
   return s;
+}
+
+void addAccuracyFields(const AccuracySummary& a, JsonObject* json) {
+  json->add("frames", a.frames)
+      .add("invalid", a.invalid)
+      .add("rot_rmse_deg", a.rot_rmse_deg)
+      .add("rot_max_deg", a.rot_max_deg)
+      .add("yaw_rmse_deg", a.yaw_rmse_deg)
+      .add("yaw_max_deg", a.yaw_max_deg)
+      .add("mean_rate_dps", a.mean_rate_dps)
+      .add("rate_rmse_dps", a.rate_rmse_dps);
 }
 
 }  // namespace metrics

@@ -11,6 +11,9 @@
 #include <Eigen/Core>
 
 namespace visual_gyro {
+
+class JsonObject;
+
 namespace metrics {
 
 /// 99 % quantile of the chi-square distribution with 3 degrees of freedom.
@@ -86,6 +89,10 @@ class AccuracyAccumulator {
   double rate_sq_ = 0.0, true_rate_sum_ = 0.0, true_rot_sum_ = 0.0, nees_sum_ = 0.0;
   int nees_beyond_ = 0;
 };
+
+/// Adds the summary's figures to a JSON line under the keys every report uses: frames, invalid,
+/// rot_rmse_deg, rot_max_deg, yaw_rmse_deg, yaw_max_deg, mean_rate_dps, rate_rmse_dps.
+void addAccuracyFields(const AccuracySummary& summary, JsonObject* json);
 
 }  // namespace metrics
 }  // namespace visual_gyro

@@ -5,6 +5,7 @@
 // still, so on a static stretch trueRotation() is ~0.2 deg per 50 ms frame, not zero, and
 // trueAngularVelocity() returns the bias rotated into the camera frame.
 #include "visual_gyro/sequence.h"
+#include "visual_gyro/geometry.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
@@ -437,12 +438,6 @@ bool forEachGyroPiece(const std::vector<GyroSample>& gyro, double t0, double t1,
   return true;
 }
 
-Eigen::Matrix3d expSO3(const Eigen::Vector3d& v) {
-  const double angle = v.norm();
-  if (angle < 1e-12) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, v / angle).toRotationMatrix();
-}
-
 }  // namespace
 
 bool Sequence::trueRotation(size_t k, Eigen::Matrix3d* rotation) const {
@@ -459,7 +454,7 @@ bool Sequence::trueRotation(size_t k, Eigen::Matrix3d* rotation) const {
   const Eigen::Matrix3d R_cb = body_from_camera.transpose();
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   if (!forEachGyroPiece(gyro, stamps[k - 1], stamps[k],
-                        [&](double dt, const Eigen::Vector3d& w_body) { R = R * expSO3(R_cb * w_body * dt); }))
+                        [&](double dt, const Eigen::Vector3d& w_body) { R = R * so3Exp(R_cb * w_body * dt); }))
     return false;
   *rotation = R;
   return true;

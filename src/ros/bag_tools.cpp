@@ -346,19 +346,11 @@ std::string OutputSummary::json() const {
   times.add("detect", detect_ms).add("describe", describe_ms).add("match", match_ms).add("estimate", estimate_ms)
       .add("total", total_ms);
   JsonObject j;
-  j.add("dataset", dataset)
-      .add("method", method)
-      .add("frames", accuracy.frames)
-      .add("rot_rmse_deg", accuracy.rot_rmse_deg)
-      .add("rot_max_deg", accuracy.rot_max_deg)
-      .add("yaw_rmse_deg", accuracy.yaw_rmse_deg)
-      .add("yaw_max_deg", accuracy.yaw_max_deg)
-      .add("mean_rate_dps", accuracy.mean_rate_dps)
-      .add("rate_rmse_dps", accuracy.rate_rmse_dps)
-      .add("ms_per_frame", times)
+  j.add("dataset", dataset).add("method", method);
+  metrics::addAccuracyFields(accuracy, &j);
+  j.add("ms_per_frame", times)
       .add("imu_published", imu_published)
       .add("latency_ms", latency_ms)
-      .add("invalid", accuracy.invalid)
       .add("backend", backend)
       .add("source", "ros");
   return j.str();

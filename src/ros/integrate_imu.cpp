@@ -14,6 +14,7 @@
 #include "bag_tools.h"
 #include "command_line.h"
 #include "imu_integration.h"
+#include "json_writer.h"
 #include "ros_conversions.h"
 
 namespace {
@@ -83,8 +84,13 @@ int run(int argc, char** argv) {
         next += print_every;
       }
     }
-    std::printf("{\"imu\": %zu, \"rms_deg\": %.4f, \"mean_deg\": %.4f, \"max_deg\": %.4f, \"final_deg\": %.4f}\n",
-                rates.size(), error.rms_deg, error.mean_deg, error.max_deg, error.final_deg);
+    visual_gyro::JsonObject line;
+    line.add("imu", static_cast<long long>(rates.size()))
+        .add("rms_deg", error.rms_deg)
+        .add("mean_deg", error.mean_deg)
+        .add("max_deg", error.max_deg)
+        .add("final_deg", error.final_deg);
+    std::printf("%s\n", line.str().c_str());
   }
   return 0;
 }
