@@ -29,7 +29,7 @@ build() {  # name, sources...
 passed=0
 failed=0
 build fuzz_to_gray "${REPO_DIR}/test/fuzz/fuzz_to_gray.cpp" "${REPO_DIR}/src/ros/ros_conversions.cpp" "${core[@]}" || failed=$((failed + 1))
-build fuzz_sequence "${REPO_DIR}/test/fuzz/fuzz_sequence.cpp" "${REPO_DIR}/src/core/sequence.cpp" "${core[@]}" || failed=$((failed + 1))
+build fuzz_sequence "${REPO_DIR}/test/fuzz/fuzz_sequence.cpp" "${REPO_DIR}/src/io/sequence.cpp" "${core[@]}" || failed=$((failed + 1))
 
 # Seeds: a valid mono8 image and CameraInfo; a valid KITTI and EuRoC folder's files.
 seed() {  # target, name, printf format...
