@@ -77,16 +77,15 @@ const std::vector<SettingField<VisualGyroSettings>>& visualGyroSettingFields();
 const SettingField<VisualGyroSettings>* findSetting(const std::string& name);
 
 /// Sets one setting from text (as `evaluate --set name=value` and the nodelet's parameters do):
-/// "" when `value` parses and is in range, else why not (and *settings is unchanged). Whole-set
-/// rules (validateVisualGyroSettings) are checked by the caller once all settings are applied.
+/// "" when `value` parses and is in range, else why not (and *settings is unchanged).
 std::string applySetting(VisualGyroSettings* settings, const std::string& name, const std::string& value);
 
 /// The settings as the README's Markdown table (name, default, accepted values, meaning), one row
 /// per setting in table order: `evaluate --settings-table` prints it.
 std::string settingsMarkdownTable();
 
-/// "" when the settings are usable: every setting in its range and the estimator's combined rules
-/// (validateSettings) hold; else a message naming the setting.
+/// "" when the settings are usable: every setting in its range (there are no rules across
+/// settings); else a message naming the setting.
 std::string validateVisualGyroSettings(const VisualGyroSettings& settings);
 
 /// "" when a rotation vector [rad] over dt [s] is a plausible rate for `settings`, else why not

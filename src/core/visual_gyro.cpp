@@ -99,15 +99,8 @@ std::string settingsMarkdownTable() {
 }
 
 std::string validateVisualGyroSettings(const VisualGyroSettings& settings) {
-  std::string problem = validateFrontEndSettings(settings.front_end);
-  if (problem.empty()) problem = validateSettings(settings.estimator);
-  if (problem.empty()) {
-    for (const auto& f : visualGyroSettingFields()) {
-      problem = f.checkRange(settings);
-      if (!problem.empty()) break;
-    }
-  }
-  return problem;
+  // The front end's and the estimator's fields are part of this table: one pass checks them all.
+  return checkRanges(settings, visualGyroSettingFields());
 }
 
 std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,

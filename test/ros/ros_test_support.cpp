@@ -158,6 +158,16 @@ void OutputRecorder::clear() {
   logs_.clear();
 }
 
+frame_player::PlayerOptions playerUnderNamespace(const std::string& ns) {
+  frame_player::PlayerOptions options;
+  options.topics.image = ns + options.topics.image;
+  options.topics.camera_info = ns + options.topics.camera_info;
+  options.topics.ground_truth = ns + options.topics.ground_truth;
+  options.output_ns = ns + options.output_ns;
+  options.frame_timeout = 20.0;
+  return options;
+}
+
 int runRosTests(int argc, char** argv, const char* node_name, int threads, const std::function<int()>& body) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, node_name);

@@ -16,6 +16,7 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 
+#include "frame_player.h"
 #include "visual_gyro/RotationEstimate.h"
 #include "visual_gyro/renderer.h"
 
@@ -76,6 +77,10 @@ class OutputRecorder {
   std::vector<std::pair<int, std::string>> diag_;
   std::vector<std::string> logs_;
 };
+
+/// Frame-by-frame player options for a node launched under namespace `ns` (e.g. "/compressed"):
+/// the bag's default topics and the node's outputs moved under it, 20 s per frame.
+frame_player::PlayerOptions playerUnderNamespace(const std::string& ns);
 
 /// main() of a gtest with ROS: gtest and ROS initialised as `node_name`, an AsyncSpinner with
 /// `threads` threads running around body() (which runs the tests and returns their result).

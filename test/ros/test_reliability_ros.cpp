@@ -92,38 +92,35 @@ bool reconfigure(const dynamic_reconfigure::Config& change, dynamic_reconfigure:
   return true;
 }
 
+/// One parameter of a reconfigure request (DoubleParameter, StrParameter, ...).
+template <class Parameter, class Value>
+Parameter parameter(const std::string& name, const Value& value) {
+  Parameter p;
+  p.name = name;
+  p.value = value;
+  return p;
+}
+
 /// Sets one double of the node's dynamic_reconfigure settings.
 bool reconfigure(const std::string& name, double value, dynamic_reconfigure::Config* answer = nullptr) {
   dynamic_reconfigure::Config change;
-  dynamic_reconfigure::DoubleParameter p;
-  p.name = name;
-  p.value = value;
-  change.doubles.push_back(p);
+  change.doubles.push_back(parameter<dynamic_reconfigure::DoubleParameter>(name, value));
   return reconfigure(change, answer);
 }
 
 /// Sets one text setting of the node's dynamic_reconfigure settings.
 bool reconfigure(const std::string& name, const std::string& value, dynamic_reconfigure::Config* answer = nullptr) {
   dynamic_reconfigure::Config change;
-  dynamic_reconfigure::StrParameter p;
-  p.name = name;
-  p.value = value;
-  change.strs.push_back(p);
+  change.strs.push_back(parameter<dynamic_reconfigure::StrParameter>(name, value));
   return reconfigure(change, answer);
 }
 
-/// The text setting `name` in a server's answer ("" when absent).
-std::string textIn(const dynamic_reconfigure::Config& config, const std::string& name) {
-  for (const auto& p : config.strs)
+/// The value of `name` among one type's parameters of a server's answer, or `absent`.
+template <class Parameter, class Value>
+Value valueIn(const std::vector<Parameter>& parameters, const std::string& name, const Value& absent) {
+  for (const auto& p : parameters)
     if (p.name == name) return p.value;
-  return "";
-}
-
-/// The number `name` in a server's answer (NaN when absent).
-double numberIn(const dynamic_reconfigure::Config& config, const std::string& name) {
-  for (const auto& p : config.doubles)
-    if (p.name == name) return p.value;
-  return std::nan("");
+  return absent;
 }
 
 using Level = diagnostic_msgs::DiagnosticStatus;
@@ -307,7 +304,7 @@ TEST(ReliabilityRos, RejectedLiveChangeKeepsThePreviousSettingsAndWarns) {
   dynamic_reconfigure::Config answer;
   ASSERT_TRUE(reconfigure("method", std::string("nonsense"), &answer));
   // The server answers, publishes and stores the settings still in use.
-  EXPECT_EQ(textIn(answer, "method"), before_method);
+  EXPECT_EQ(valueIn(answer.strs, "method", std::string()), before_method);
   std::string stored_method;
   ASSERT_TRUE(ros::param::get(std::string(kNs) + "/method", stored_method));
   EXPECT_EQ(stored_method, before_method) << "the parameter server holds the rejected value";
@@ -322,7 +319,7 @@ TEST(ReliabilityRos, RejectedLiveChangeKeepsThePreviousSettingsAndWarns) {
   EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "rejected settings change", 3.0)) << "the WARN did not last";
 
   ASSERT_TRUE(reconfigure("rotation_window_deg", 8.0, &answer));
-  EXPECT_EQ(numberIn(answer, "rotation_window_deg"), 8.0);
+  EXPECT_EQ(valueIn(answer.doubles, "rotation_window_deg", std::nan("")), 8.0);
   h.clear();
   EXPECT_TRUE(waitFor(
       [&] {

@@ -141,12 +141,7 @@ TEST(VisualGyroReplay, KittiTurnJpegCompressed) {
   EXPECT_LT(bag.frames[0].compressed->data.size(), 1241u * 376u / 3);
 
   // The second nodelet (ns /compressed, ~image_transport compressed) decodes them.
-  visual_gyro::frame_player::PlayerOptions options;
-  options.topics.image = "/compressed/camera/image_raw";
-  options.topics.camera_info = "/compressed/camera/camera_info";
-  options.topics.ground_truth = "/compressed/ground_truth/pose";
-  options.output_ns = "/compressed/visual_gyro";
-  options.frame_timeout = 20.0;
+  const visual_gyro::frame_player::PlayerOptions options = visual_gyro::ros_test::playerUnderNamespace("/compressed");
   const auto report = visual_gyro::frame_player::playFrames(bag, options);
   ASSERT_TRUE(report.ok) << report.error;
   const bt::OutputSummary summary =

@@ -79,12 +79,7 @@ TEST(RosbagReplay, KittiTurnAtRateOneMatchesFrameByFrame) {
   const int pairs = written.images - 1;
 
   // The reference: every frame, one at a time, through the frame-by-frame nodelet.
-  visual_gyro::frame_player::PlayerOptions options;
-  options.topics.image = "/frame_by_frame/camera/image_raw";
-  options.topics.camera_info = "/frame_by_frame/camera/camera_info";
-  options.topics.ground_truth = "/frame_by_frame/ground_truth/pose";
-  options.output_ns = "/frame_by_frame/visual_gyro";
-  options.frame_timeout = 20.0;
+  const visual_gyro::frame_player::PlayerOptions options = visual_gyro::ros_test::playerUnderNamespace("/frame_by_frame");
   const auto reference = visual_gyro::frame_player::playFrames(bag, options);
   ASSERT_TRUE(reference.ok) << reference.error;
   const bt::OutputSummary frame_by_frame =
