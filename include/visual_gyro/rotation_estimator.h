@@ -25,6 +25,7 @@ namespace visual_gyro {
 class HypothesisVoter;
 struct VoteRequest;
 struct VoteResult;
+struct VoteWorkspace;
 
 /// How the rotation is estimated.
 enum class EstimationMethod {
@@ -227,6 +228,7 @@ class RotationEstimator {
   double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
   double vote_device_ms_ = 0.0;  // this frame's kernel time so far
   std::unique_ptr<VoteResult> votes_;  // reused: no per-frame allocation once the histogram has its size
+  std::unique_ptr<VoteWorkspace> workspace_;  // the vote method's per-frame arrays, reused likewise
   uint64_t frame_count_ = 0;
 };
 

@@ -80,12 +80,11 @@ std::string checkBearings(const std::vector<Eigen::Vector3d>& previous,
   return "";
 }
 
-std::vector<hyp::Vec3f> toFloat(const std::vector<Eigen::Vector3d>& v) {
-  std::vector<hyp::Vec3f> out(v.size());
+void toFloat(const std::vector<Eigen::Vector3d>& v, std::vector<hyp::Vec3f>* out) {
+  out->resize(v.size());
   for (size_t i = 0; i < v.size(); ++i)
-    out[i] = hyp::make3(static_cast<float>(v[i].x()), static_cast<float>(v[i].y()),
-                        static_cast<float>(v[i].z()));
-  return out;
+    (*out)[i] = hyp::make3(static_cast<float>(v[i].x()), static_cast<float>(v[i].y()),
+                           static_cast<float>(v[i].z()));
 }
 
 void fillAngles(const Eigen::Matrix3d& R, RotationResult* result) {
@@ -120,6 +119,15 @@ int binsFor(double window_deg, double bin_deg) {
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+/// One frame's bearings as the voter (float) and the verification and refinement (structure of
+/// arrays) read them, kept between frames so that a frame allocates nothing once they have grown.
+struct VoteWorkspace {
+  std::vector<hyp::Vec3f> prev, cur;
+  FrameMatches matches;
+};
 
 // ---------------------------------------------------------------------------------------------
 
@@ -228,7 +236,10 @@ void PriorTracker::update(const RotationResult& result, double dt) {
 
 RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
                                      std::unique_ptr<HypothesisVoter> voter)
-    : settings_(settings), voter_(std::move(voter)), votes_(std::make_unique<VoteResult>()) {
+    : settings_(settings),
+      voter_(std::move(voter)),
+      votes_(std::make_unique<VoteResult>()),
+      workspace_(std::make_unique<VoteWorkspace>()) {
   const std::string problem = validateSettings(settings_);
   if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
   if (!voter_) throw std::invalid_argument("RotationEstimator needs a voter");
@@ -285,7 +296,10 @@ void RotationEstimator::castVotes(const VoteRequest& request, VoteResult* votes)
 // yaw into a histogram, the fullest bin wins and is read at its centre.
 RotationResult RotationEstimator::estimatePaper(const std::vector<Eigen::Vector3d>& previous,
                                                 const std::vector<Eigen::Vector3d>& current) {
-  const std::vector<hyp::Vec3f> prev = toFloat(previous), cur = toFloat(current);
+  std::vector<hyp::Vec3f>& prev = workspace_->prev;
+  std::vector<hyp::Vec3f>& cur = workspace_->cur;
+  toFloat(previous, &prev);
+  toFloat(current, &cur);
   VoteRequest request;
   request.prev = prev.data();
   request.cur = cur.data();
@@ -412,7 +426,12 @@ Eigen::Matrix3d honestCovariance(const RefinedRotation& winner, const std::vecto
 RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d>& previous,
                                                const std::vector<Eigen::Vector3d>& current,
                                                const RotationPrior& prior) {
-  const std::vector<hyp::Vec3f> prev = toFloat(previous), cur = toFloat(current);
+  std::vector<hyp::Vec3f>& prev = workspace_->prev;
+  std::vector<hyp::Vec3f>& cur = workspace_->cur;
+  toFloat(previous, &prev);
+  toFloat(current, &cur);
+  FrameMatches& matches = workspace_->matches;
+  matches.assign(previous, current);
   const uint64_t seed = settings_.seed + frame_count_;
   const double threshold = settings_.inlier_threshold_deg * kDeg;
   const int n = static_cast<int>(previous.size());
@@ -445,7 +464,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     ++diagnostics.candidates_verified;
     // Voted candidates are off by a few tenths of a degree under translation: a looser gate lets
     // them gather the inliers (and the epipole) that refinement then tightens.
-    Verified v{rotation_vector, verifyRotation(previous, current, so3Exp(rotation_vector), 2.0 * threshold, seed),
+    Verified v{rotation_vector, verifyRotation(matches, so3Exp(rotation_vector), 2.0 * threshold, seed),
                source};
     if (v.rotation.inliers > best_verified) {
       best_verified = v.rotation.inliers;
@@ -509,7 +528,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   for (const Verified& v : verified) {
     if (refined_count == kMaxRefinedCandidates) break;
     if (v.rotation.inliers < kRefineFraction * best_verified) break;
-    const RefinedRotation r = refineRotation(previous, current, v.rotation, threshold, settings_.refine_iterations);
+    const RefinedRotation r = refineRotation(matches, v.rotation, threshold, settings_.refine_iterations);
     ++refined_count;
     contenders.push_back(r);
     if (winner == nullptr || explainsBetter(r, refined)) {
@@ -545,14 +564,14 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     }
     VerifiedRotation best_step;
     if (!axes.empty()) {
-      best_step = verifyRotation(previous, current, refined.rotation, threshold, seed + 7);
+      best_step = verifyRotation(matches, refined.rotation, threshold, seed + 7);
       diagnostics.valley_searched = true;
     }
     bool stepped = false;
     for (const Eigen::Vector3d& axis : axes) {
       for (double step_deg : kValleySteps) {
         const Eigen::Matrix3d stepped_rotation = so3Exp(step_deg * kDeg * axis) * refined.rotation;
-        const VerifiedRotation v = verifyRotation(previous, current, stepped_rotation, threshold, seed + 7);
+        const VerifiedRotation v = verifyRotation(matches, stepped_rotation, threshold, seed + 7);
         if (v.inliers > best_step.inliers) {
           best_step = v;
           stepped = true;
@@ -560,7 +579,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       }
     }
     if (stepped) {
-      const RefinedRotation r = refineRotation(previous, current, best_step, threshold, settings_.refine_iterations);
+      const RefinedRotation r = refineRotation(matches, best_step, threshold, settings_.refine_iterations);
       contenders.push_back(r);
       if (explainsBetter(r, refined)) {
         diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
@@ -576,12 +595,12 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // Local optimisation: the refined rotation is better than the voted one, so the translation
   // search on it finds a better epipole and more inliers; repeat while the inlier set grows.
   for (int round = 1; round <= 1; ++round) {
-    const VerifiedRotation again = verifyRotation(previous, current, refined.rotation, threshold, seed + round);
+    const VerifiedRotation again = verifyRotation(matches, refined.rotation, threshold, seed + round);
     // A couple more inliers cannot move the solution measurably; only a clearly larger set is
     // worth another refinement.
     if (again.inliers <= refined.inliers + std::max(3, refined.inliers / 50)) break;
     const RefinedRotation next =
-        refineRotation(previous, current, again, threshold, settings_.refine_iterations, true);
+        refineRotation(matches, again, threshold, settings_.refine_iterations, true);
     if (next.inliers <= refined.inliers) break;
     refined = next;
   }

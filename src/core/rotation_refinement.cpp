@@ -25,19 +25,6 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
   return B;
 }
 
-// Row of d(t . (p x R exp(d) c))/d(d, tau): t^T [p]x R (-[c]x) = -((R^T (t x p)) x c)^T for the
-// rotation, n^T B for the tangent-plane translation step. Cross products instead of 3x3 matrices:
-// this runs for every inlier in every iteration.
-Eigen::Matrix<double, 1, 5> epipolarJacobian(const Eigen::Vector3d& p, const Eigen::Vector3d& c,
-                                             const Eigen::Matrix3d& R, const Eigen::Vector3d& t,
-                                             const Eigen::Vector3d& normal,
-                                             const Eigen::Matrix<double, 3, 2>& B) {
-  Eigen::Matrix<double, 1, 5> J;
-  J.head<3>() = -((R.transpose() * t.cross(p)).cross(c)).transpose();
-  J.tail<2>() = normal.transpose() * B;
-  return J;
-}
-
 // Angular distance of the match from its epipolar plane: the algebraic residual t.(p x Rc) divided
 // by the symmetric Sampson-style norm of its gradient. The algebraic residual shrinks with the
 // distance of the bearings from the epipole, so wrong matches near the focus of expansion pass an
@@ -59,13 +46,9 @@ double tukeyCost(double r, double c) {
 }
 
 // epipolarScale(t, p, rc) * |t . normal| < gate without a square root or a division (this runs
-// for every match of every translation sample). The scale is >= 1 for unit vectors, so a large
-// algebraic residual rejects at once.
-inline bool withinEpipolarGate(const Eigen::Vector3d& t, const Eigen::Vector3d& p,
-                               const Eigen::Vector3d& rc, const Eigen::Vector3d& normal, double gate) {
-  const double algebraic = t.dot(normal);
-  if (std::abs(algebraic) >= gate) return false;
-  const double tp = t.dot(p), trc = t.dot(rc);
+// for every match of every translation sample). The squared scale's inverse is at most 1, so this
+// also implies |t . normal| < gate; written without branches so the counting loops vectorise.
+inline bool withinEpipolarGate(double algebraic, double tp, double trc, double gate) {
   const double squared = std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6);  // |t x v|^2 = 1 - (t.v)^2
   return algebraic * algebraic < gate * gate * squared;
 }
@@ -75,21 +58,54 @@ double huberWeight(double r, double k) {
   return a <= k ? 1.0 : k / a;
 }
 
-// Matches whose bearings point into opposite half-spaces after the rotation cannot be one point.
-bool sameHemisphere(const Eigen::Vector3d& p, const Eigen::Vector3d& rc) { return p.dot(rc) > 0.0; }
+// R b_cur, b_prev x R b_cur and the hemisphere test of every match into the scratch arrays: the
+// one pass per rotation that the counting and gating loops then read. Matches whose bearings
+// point into opposite half-spaces after the rotation cannot be one point.
+void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  for (std::vector<double>* v : {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz}) v->resize(n);
+  s.usable.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double rx = R(0, 0) * m.cx[i] + R(0, 1) * m.cy[i] + R(0, 2) * m.cz[i];
+    const double ry = R(1, 0) * m.cx[i] + R(1, 1) * m.cy[i] + R(1, 2) * m.cz[i];
+    const double rz = R(2, 0) * m.cx[i] + R(2, 1) * m.cy[i] + R(2, 2) * m.cz[i];
+    s.rx[i] = rx;
+    s.ry[i] = ry;
+    s.rz[i] = rz;
+    s.nx[i] = m.py[i] * rz - m.pz[i] * ry;
+    s.ny[i] = m.pz[i] * rx - m.px[i] * rz;
+    s.nz[i] = m.px[i] * ry - m.py[i] * rx;
+    s.usable[i] = m.px[i] * rx + m.py[i] * ry + m.pz[i] * rz > 0.0;
+  }
+}
+
+// Epipolar inliers of translation t among every stride-th match, from the scratch of rotateAll.
+int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, size_t stride) {
+  const FrameMatches::Scratch& s = m.scratch;
+  const double tx = t.x(), ty = t.y(), tz = t.z();
+  int count = 0;
+  for (size_t i = 0; i < m.size(); i += stride) {
+    const double algebraic = tx * s.nx[i] + ty * s.ny[i] + tz * s.nz[i];
+    const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
+    const double trc = tx * s.rx[i] + ty * s.ry[i] + tz * s.rz[i];
+    count += s.usable[i] & withinEpipolarGate(algebraic, tp, trc, gate);
+  }
+  return count;
+}
 
 // 3.5 robust sigmas (1.4826 MAD) of the residuals below the threshold, clamped to
-// [threshold / 8, threshold]. With t == nullptr the residual is the pure-rotation one |b x R b'|.
-double adaptiveGate(const std::vector<Eigen::Vector3d>& previous,
-                    const std::vector<Eigen::Vector3d>& current, const Eigen::Matrix3d& R,
-                    const Eigen::Vector3d* t, double threshold) {
-  std::vector<double> residuals;
-  residuals.reserve(previous.size());
-  for (size_t i = 0; i < previous.size(); ++i) {
-    const Eigen::Vector3d rc = R * current[i];
-    if (!sameHemisphere(previous[i], rc)) continue;
-    const Eigen::Vector3d normal = previous[i].cross(rc);
-    const double r = t != nullptr ? std::abs(t->dot(normal)) * epipolarScale(*t, previous[i], rc)
+// [threshold / 8, threshold], at the rotation of the last rotateAll. With t == nullptr the residual
+// is the pure-rotation one |b x R b'|.
+double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold) {
+  FrameMatches::Scratch& s = m.scratch;
+  std::vector<double>& residuals = s.residuals;
+  residuals.clear();
+  for (size_t i = 0; i < m.size(); ++i) {
+    if (!s.usable[i]) continue;
+    const Eigen::Vector3d normal(s.nx[i], s.ny[i], s.nz[i]);
+    const double r = t != nullptr ? std::abs(t->dot(normal)) *
+                                        epipolarScale(*t, m.previous(i), Eigen::Vector3d(s.rx[i], s.ry[i], s.rz[i]))
                                   : normal.norm();
     if (r < threshold) residuals.push_back(r);
   }
@@ -101,28 +117,23 @@ double adaptiveGate(const std::vector<Eigen::Vector3d>& previous,
   return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
 }
 
-RefinedRotation refinePureRotation(const std::vector<Eigen::Vector3d>& previous,
-                                   const std::vector<Eigen::Vector3d>& current, Eigen::Matrix3d R,
-                                   double threshold, int iterations) {
-  const size_t n = previous.size();
+RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double threshold, int iterations) {
+  const size_t n = m.size();
+  const FrameMatches::Scratch& s = m.scratch;
   RefinedRotation out;
-  std::vector<double> weight(n);
-  double gate_width = 1.6 * threshold;
   for (int it = 0; it < std::max(1, iterations); ++it) {
-    if (it > 0) gate_width = adaptiveGate(previous, current, R, nullptr, threshold);
+    rotateAll(m, R);
+    const double gate_width = it > 0 ? adaptiveGate(m, nullptr, threshold) : 1.6 * threshold;
+    const double gate2 = (kRotationGateScale * gate_width) * (kRotationGateScale * gate_width);
     // Weighted Kabsch: the closed-form minimiser of sum w |b_prev - R b_cur|^2.
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     int used = 0;
     for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d rc = R * current[i];
-      const double r = previous[i].cross(rc).norm();
-      weight[i] = (r < kRotationGateScale * gate_width && sameHemisphere(previous[i], rc))
-                      ? huberWeight(r, 0.5 * gate_width)
-                      : 0.0;
-      if (weight[i] > 0.0) {
-        H += weight[i] * current[i] * previous[i].transpose();
-        ++used;
-      }
+      const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
+      if (!s.usable[i] || r2 >= gate2) continue;
+      const double w = huberWeight(std::sqrt(r2), 0.5 * gate_width);
+      H.noalias() += (w * m.current(i)) * m.previous(i).transpose();
+      ++used;
     }
     if (used < 3) break;
     Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
@@ -133,19 +144,29 @@ RefinedRotation refinePureRotation(const std::vector<Eigen::Vector3d>& previous,
     R = next;
     if (change < 1e-10) break;
   }
-  // Covariance of the right perturbation R exp(d): residual b_prev x R exp(d) b_cur.
-  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-  double sum_sq = 0.0;
+  // Covariance of the right perturbation R exp(d): residual b_prev x R exp(d) b_cur, Jacobian
+  // J = -[p]x R [c]x = -[p]x [Rc]x R. With K = [p]x [Rc]x = Rc p^T - (p.Rc) I,
+  // J^T J = R^T K^T K R and K^T K = |c|^2 p p^T - (p.Rc)(p Rc^T + Rc p^T) + (p.Rc)^2 I: three
+  // sums over the inliers, and the rotation applied once.
+  rotateAll(m, R);
+  const double gate2 = (kRotationGateScale * threshold) * (kRotationGateScale * threshold);
+  Eigen::Matrix3d pp = Eigen::Matrix3d::Zero(), cross = Eigen::Matrix3d::Zero();
+  double d2 = 0.0, sum_sq = 0.0;
   int inliers = 0;
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d rc = R * current[i];
-    const Eigen::Vector3d r = previous[i].cross(rc);
-    if (r.norm() >= kRotationGateScale * threshold || !sameHemisphere(previous[i], rc)) continue;
-    const Eigen::Matrix3d J = -skew(previous[i]) * R * skew(current[i]);
-    A += J.transpose() * J;
-    sum_sq += r.squaredNorm();
+    const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
+    if (!s.usable[i] || r2 >= gate2) continue;
+    const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]);
+    const double d = p.dot(rc);
+    pp.noalias() += rc.squaredNorm() * p * p.transpose();
+    cross.noalias() += d * p * rc.transpose();
+    d2 += d * d;
+    sum_sq += r2;
     ++inliers;
   }
+  Eigen::Matrix3d KtK = pp - cross - cross.transpose();
+  KtK.diagonal().array() += d2;
+  const Eigen::Matrix3d A = R.transpose() * KtK * R;
   out.rotation = R;
   out.inliers = inliers;
   out.pure_rotation = true;
@@ -158,18 +179,82 @@ RefinedRotation refinePureRotation(const std::vector<Eigen::Vector3d>& previous,
   return out;
 }
 
+// The normal equations of the epipolar residuals in the step (R exp(d), t + B tau).
 struct NormalEquations {
   Eigen::Matrix<double, 5, 5> A;
   Eigen::Matrix<double, 5, 1> g;
   Eigen::Matrix<double, 3, 2> B;  // tangent basis of t the step's last two entries refer to
-  double cost = 0.0;
-  int used = 0;
+  double cost = 0.0;              // Tukey cost, or the sum of squared residuals (kInliers)
+  int used = 0;                   // matches summed, or those within the gate (kInliers)
 };
 
-RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
-                              const std::vector<Eigen::Vector3d>& current, Eigen::Matrix3d R,
-                              Eigen::Vector3d t, double threshold, int iterations, bool warm) {
-  const size_t n = previous.size();
+// kTukey: Tukey-weighted residuals with cut-off `gate`, for Levenberg-Marquardt; kInliers:
+// unweighted residuals below `gate`, for the covariance.
+enum class Weighting { kTukey, kInliers };
+
+// One pass over the matches `indices` gives both the cost at (R, t) and the normal equations for
+// the next step, so an accepted Levenberg-Marquardt step costs one pass over the matches.
+// Row of d(t . (p x R exp(d) c))/d(d, tau): t^T [p]x R (-[c]x) = -((R^T (t x p)) x c)^T
+// = -(R^T ((t x p) x Rc))^T for the rotation, n^T B for the tangent-plane translation step; the
+// sums are taken with the rotation part's R^T left out and it is applied once at the end (this
+// loop runs for every gated match in every iteration, so it is written in scalars with only the
+// 15 distinct entries of the symmetric matrix).
+void accumulateEpipolar(const FrameMatches& m, const std::vector<uint32_t>& indices, const Eigen::Matrix3d& R,
+                        const Eigen::Vector3d& t, double gate, Weighting weighting, NormalEquations* ne) {
+  const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
+  const double tx = t.x(), ty = t.y(), tz = t.z();
+  double a[15] = {}, g[5] = {};
+  double cost = 0.0;
+  int used = 0;
+  for (const uint32_t i : indices) {
+    const double px = m.px[i], py = m.py[i], pz = m.pz[i];
+    const double rx = R(0, 0) * m.cx[i] + R(0, 1) * m.cy[i] + R(0, 2) * m.cz[i];
+    const double ry = R(1, 0) * m.cx[i] + R(1, 1) * m.cy[i] + R(1, 2) * m.cz[i];
+    const double rz = R(2, 0) * m.cx[i] + R(2, 1) * m.cy[i] + R(2, 2) * m.cz[i];
+    const double nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
+    // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
+    const double tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
+    const double scale = 1.0 / std::sqrt(std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6));
+    const double r = (tx * nx + ty * ny + tz * nz) * scale;
+    double w = 1.0;
+    if (weighting == Weighting::kTukey) {
+      cost += tukeyCost(r, gate);
+      ++used;
+      w = tukeyWeight(r, gate);
+      if (w == 0.0) continue;
+    } else {
+      if (std::abs(r) >= gate || px * rx + py * ry + pz * rz <= 0.0) continue;
+      cost += r * r;
+      ++used;
+    }
+    const double qx = ty * pz - tz * py, qy = tz * px - tx * pz, qz = tx * py - ty * px;  // t x p
+    const double j[5] = {qz * ry - qy * rz, qx * rz - qz * rx, qy * rx - qx * ry,
+                         nx * B(0, 0) + ny * B(1, 0) + nz * B(2, 0), nx * B(0, 1) + ny * B(1, 1) + nz * B(2, 1)};
+    const double ws = w * scale * scale, wr = w * r * scale;
+    int k = 0;
+    for (int row = 0; row < 5; ++row) {
+      g[row] += wr * j[row];
+      for (int col = row; col < 5; ++col) a[k++] += ws * j[row] * j[col];
+    }
+  }
+  Eigen::Matrix<double, 5, 5> A;
+  int k = 0;
+  for (int row = 0; row < 5; ++row)
+    for (int col = row; col < 5; ++col) A(row, col) = A(col, row) = a[k++];
+  Eigen::Matrix<double, 5, 5> T = Eigen::Matrix<double, 5, 5>::Identity();
+  T.topLeftCorner<3, 3>() = R.transpose();
+  ne->A.noalias() = T * A * T.transpose();
+  ne->g.noalias() = T * Eigen::Map<const Eigen::Matrix<double, 5, 1>>(g);
+  ne->B = B;
+  ne->cost = cost;
+  ne->used = used;
+}
+
+RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3d t, double threshold,
+                              int iterations, bool warm) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  std::vector<uint32_t>& gated = s.indices;
   RefinedRotation out;
   double lambda = 1e-6;
   // The inlier gate is fixed per outer round (residuals of the round's start), so each
@@ -180,51 +265,27 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
   // threshold): under forward motion a wrong match near the epipole satisfies the epipolar
   // constraint almost as well as a right one, and the yaw/lateral-translation ambiguity turns the
   // few that slip through a fixed gate into a visible rotation bias.
-  std::vector<char> gate(n);
   const double schedule[] = {6.0 * threshold, 2.0 * threshold, 0.0};
   const int rounds = static_cast<int>(sizeof(schedule) / sizeof(schedule[0]));
   // A warm start (already refined once) is inside the basin: only the adaptive rounds remain.
   for (int round = warm ? rounds - 1 : 0; round < rounds; ++round) {
+    rotateAll(m, R);
     double gate_width = schedule[round];
-    if (gate_width == 0.0) gate_width = adaptiveGate(previous, current, R, &t, threshold);
+    if (gate_width == 0.0) gate_width = adaptiveGate(m, &t, threshold);
     // The wide early gates only need to move the start into the basin: a few steps suffice.
     const bool last = round + 1 == rounds;
     const int round_iterations = last ? iterations : std::min(iterations, 2);
     // ... on every other match: enough to find the basin; the last round uses them all.
     const size_t stride = last || n < 300 ? 1 : 2;
-    for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d rc = R * current[i];
-      gate[i] = i % stride == 0 &&
-                withinEpipolarGate(t, previous[i], rc, previous[i].cross(rc), gate_width) &&
-                sameHemisphere(previous[i], rc);
+    gated.clear();
+    for (size_t i = 0; i < n; i += stride) {
+      const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
+      const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
+      const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
+      if (s.usable[i] && withinEpipolarGate(algebraic, tp, trc, gate_width)) gated.push_back(static_cast<uint32_t>(i));
     }
-    // One pass gives both the cost at (R, t) and the normal equations for the next step, so an
-    // accepted Levenberg-Marquardt step costs one pass over the matches, not two.
-    auto accumulate = [&](const Eigen::Matrix3d& Rx, const Eigen::Vector3d& tx, NormalEquations* ne) {
-      const Eigen::Matrix<double, 3, 2> B = tangentBasis(tx);
-      ne->A.setZero();
-      ne->g.setZero();
-      ne->cost = 0.0;
-      ne->used = 0;
-      for (size_t i = 0; i < n; ++i) {
-        if (!gate[i]) continue;
-        const Eigen::Vector3d rc = Rx * current[i];
-        const Eigen::Vector3d normal = previous[i].cross(rc);
-        // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
-        const double scale = epipolarScale(tx, previous[i], rc);
-        const double r = tx.dot(normal) * scale;
-        const double w = tukeyWeight(r, gate_width);
-        ne->cost += tukeyCost(r, gate_width);
-        ++ne->used;
-        if (w == 0.0) continue;
-        const Eigen::Matrix<double, 1, 5> J = scale * epipolarJacobian(previous[i], current[i], Rx, tx, normal, B);
-        ne->A.noalias() += (w * J.transpose()) * J;
-        ne->g.noalias() += (w * r) * J.transpose();
-      }
-      ne->B = B;
-    };
     NormalEquations here, there;
-    accumulate(R, t, &here);
+    accumulateEpipolar(m, gated, R, t, gate_width, Weighting::kTukey, &here);
     for (int it = 0; it < round_iterations && here.used >= 6; ++it) {
       // Levenberg-Marquardt damping: under (nearly) pure rotation the translation direction is
       // unobservable and J^T W J is singular in those two columns.
@@ -234,7 +295,7 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
       if (!step.allFinite()) break;
       const Eigen::Matrix3d R_new = R * so3Exp(step.head<3>());
       const Eigen::Vector3d t_new = (t + here.B * step.tail<2>()).normalized();
-      accumulate(R_new, t_new, &there);
+      accumulateEpipolar(m, gated, R_new, t_new, gate_width, Weighting::kTukey, &there);
       if (there.cost <= here.cost) {
         R = R_new;
         t = t_new;
@@ -248,28 +309,17 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
     }
   }
   // Covariance: sigma^2 (J^T W J)^-1 at the solution, over the final inliers.
-  const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
-  Eigen::Matrix<double, 5, 5> A = Eigen::Matrix<double, 5, 5>::Zero();
-  double sum_sq = 0.0;
-  int inliers = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d rc = R * current[i];
-    const Eigen::Vector3d normal = previous[i].cross(rc);
-    const double scale = epipolarScale(t, previous[i], rc);
-    const double r = t.dot(normal) * scale;
-    if (std::abs(r) >= threshold || !sameHemisphere(previous[i], rc)) continue;
-    const Eigen::Matrix<double, 1, 5> J =
-        scale * epipolarJacobian(previous[i], current[i], R, t, normal, B);
-    A += J.transpose() * J;
-    sum_sq += r * r;
-    ++inliers;
-  }
+  gated.resize(n);
+  for (size_t i = 0; i < n; ++i) gated[i] = static_cast<uint32_t>(i);
+  NormalEquations final_fit;
+  accumulateEpipolar(m, gated, R, t, threshold, Weighting::kInliers, &final_fit);
+  const int inliers = final_fit.used;
   out.rotation = R;
   out.translation = t;
   out.inliers = inliers;
-  const double sigma2 = sum_sq / std::max(1, inliers - 5);
+  const double sigma2 = final_fit.cost / std::max(1, inliers - 5);
   out.residual_sigma = std::sqrt(sigma2);
-  Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(A);
+  Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(final_fit.A);
   if (lu.isInvertible()) {
     out.covariance = sigma2 * lu.inverse().topLeftCorner<3, 3>();
   } else {
@@ -280,36 +330,41 @@ RefinedRotation refineGeneral(const std::vector<Eigen::Vector3d>& previous,
 
 }  // namespace
 
-VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
-                                const std::vector<Eigen::Vector3d>& current,
-                                const Eigen::Matrix3d& rotation, double threshold, uint64_t seed) {
+void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const std::vector<Eigen::Vector3d>& current) {
   const size_t n = previous.size();
+  for (std::vector<double>* v : {&px, &py, &pz, &cx, &cy, &cz}) v->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    px[i] = previous[i].x();
+    py[i] = previous[i].y();
+    pz[i] = previous[i].z();
+    cx[i] = current[i].x();
+    cy[i] = current[i].y();
+    cz[i] = current[i].z();
+  }
+}
+
+VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation, double threshold,
+                                uint64_t seed) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
   VerifiedRotation out;
   out.rotation = rotation;
-  std::vector<Eigen::Vector3d> normals(n), rotated(n);
-  std::vector<char> usable(n);
-  std::vector<size_t> moving;  // matches a pure rotation does not explain: they carry t
+  rotateAll(m, rotation);
+  std::vector<uint32_t>& moving = s.indices;  // matches a pure rotation does not explain: they carry t
+  moving.clear();
+  // The pure-rotation residual is 2-D, the epipolar one 1-D: at equal false-rejection rates
+  // (95 %: 2.45 vs 1.96 sigma) the 2-D gate is 1.25 times wider.
+  const double rotation_gate2 = (kRotationGateScale * threshold) * (kRotationGateScale * threshold);
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d rc = rotation * current[i];
-    rotated[i] = rc;
-    normals[i] = previous[i].cross(rc);
-    usable[i] = sameHemisphere(previous[i], rc);
-    if (!usable[i]) continue;
-    // The pure-rotation residual is 2-D, the epipolar one 1-D: at equal false-rejection rates
-    // (95 %: 2.45 vs 1.96 sigma) the 2-D gate is 1.25 times wider.
-    if (normals[i].norm() < kRotationGateScale * threshold) {
+    if (!s.usable[i]) continue;
+    if (s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i] < rotation_gate2) {
       ++out.rotation_inliers;
     } else {
-      moving.push_back(i);
+      moving.push_back(static_cast<uint32_t>(i));
     }
   }
   out.epipolar_inliers = out.rotation_inliers;
-  auto countInliers = [&](const Eigen::Vector3d& t, size_t stride) {
-    int count = 0;
-    for (size_t i = 0; i < n; i += stride)
-      count += usable[i] && withinEpipolarGate(t, previous[i], rotated[i], normals[i], threshold);
-    return count;
-  };
+  auto normal = [&](size_t i) { return Eigen::Vector3d(s.nx[i], s.ny[i], s.nz[i]); };
   // Samples are scored on every other match (counts doubled); the winner is recounted on all.
   const size_t sample_stride = n >= 200 ? 2 : 1;
   // A translation can at best add the moving matches to the rotation inliers; when they are too
@@ -325,10 +380,10 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
     for (int trial = 0; trial < trials; ++trial) {
       const size_t a = moving[rng.next() % moving.size()];
       const size_t b = moving[rng.next() % moving.size()];
-      const Eigen::Vector3d t_raw = normals[a].cross(normals[b]);
+      const Eigen::Vector3d t_raw = normal(a).cross(normal(b));
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();
-      const int count = static_cast<int>(sample_stride) * countInliers(t, sample_stride);
+      const int count = static_cast<int>(sample_stride) * countEpipolarInliers(m, t, threshold, sample_stride);
       if (count > out.epipolar_inliers) {
         out.epipolar_inliers = count;
         out.translation = t;
@@ -336,22 +391,22 @@ VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
         trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
     }
-    if (!out.translation.isZero()) out.epipolar_inliers = countInliers(out.translation, 1);
+    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, 1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
       Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
       const Eigen::Vector3d& t = out.translation;
       for (size_t i = 0; i < n; ++i) {
-        if (!usable[i]) continue;
-        const double scale = epipolarScale(t, previous[i], rotated[i]);
-        if (std::abs(t.dot(normals[i])) * scale >= threshold) continue;
-        const Eigen::Vector3d m = scale * normals[i];
-        M += m * m.transpose();
+        if (!s.usable[i]) continue;
+        const double scale = epipolarScale(t, m.previous(i), Eigen::Vector3d(s.rx[i], s.ry[i], s.rz[i]));
+        if (std::abs(t.dot(normal(i))) * scale >= threshold) continue;
+        const Eigen::Vector3d scaled = scale * normal(i);
+        M.noalias() += scaled * scaled.transpose();
       }
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
       const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
-      const int count = countInliers(refitted, 1);
+      const int count = countEpipolarInliers(m, refitted, threshold, 1);
       if (count <= out.epipolar_inliers) break;
       out.epipolar_inliers = count;
       out.translation = refitted;
@@ -370,18 +425,16 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b) {
   return a.pure_rotation ? !general_wins : general_wins;
 }
 
-RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
-                               const std::vector<Eigen::Vector3d>& current,
-                               const VerifiedRotation& start, double threshold, int iterations,
-                               bool warm) {
+RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& start, double threshold,
+                               int iterations, bool warm) {
   // Model selection: translation is only worth estimating when it explains clearly more matches
   // than a pure rotation does; otherwise its two extra degrees of freedom just absorb rotation
   // error (the rotation/translation ambiguity of narrow fields of view).
   // The margin also absorbs the outliers that a translation chosen among them explains by chance.
   const int extra = start.epipolar_inliers - start.rotation_inliers;
   const bool pure = start.translation.isZero() || extra < kTranslationGain * start.epipolar_inliers;
-  if (pure) return refinePureRotation(previous, current, start.rotation, threshold, iterations);
-  return refineGeneral(previous, current, start.rotation, start.translation, threshold, iterations, warm);
+  if (pure) return refinePureRotation(matches, start.rotation, threshold, iterations);
+  return refineGeneral(matches, start.rotation, start.translation, threshold, iterations, warm);
 }
 
 }  // namespace visual_gyro

@@ -8,6 +8,31 @@
 
 namespace visual_gyro {
 
+/// One frame's matches as structure-of-arrays, filled once per frame and read by every
+/// verification and refinement of that frame, together with the scratch space those passes reuse.
+/// Not thread-safe: one per estimator. Allocates only while its capacity grows.
+class FrameMatches {
+ public:
+  /// Copies the bearings (previous[i] <-> current[i], equal sizes).
+  void assign(const std::vector<Eigen::Vector3d>& previous, const std::vector<Eigen::Vector3d>& current);
+  size_t size() const { return px.size(); }
+  Eigen::Vector3d previous(size_t i) const { return Eigen::Vector3d(px[i], py[i], pz[i]); }
+  Eigen::Vector3d current(size_t i) const { return Eigen::Vector3d(cx[i], cy[i], cz[i]); }
+
+  /// Coordinates of the bearings in the previous (p*) and the current (c*) frame.
+  std::vector<double> px, py, pz, cx, cy, cz;
+
+  /// Scratch of the verification and refinement passes (contents undefined between calls).
+  struct Scratch {
+    std::vector<double> rx, ry, rz;  ///< R b_cur
+    std::vector<double> nx, ny, nz;  ///< b_prev x R b_cur
+    std::vector<uint8_t> usable;     ///< b_prev and R b_cur in the same hemisphere
+    std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
+    std::vector<double> residuals;
+  };
+  Scratch scratch;
+};
+
 /// A candidate rotation checked against every match.
 struct VerifiedRotation {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
@@ -24,9 +49,8 @@ struct VerifiedRotation {
 /// n_i = b_prev_i x R b_cur_i, which must all be orthogonal to the translation. A match is an
 /// epipolar inlier when its angular distance from the epipolar plane (t . n_i over the Sampson
 /// norm of its gradient) is below threshold [rad].
-VerifiedRotation verifyRotation(const std::vector<Eigen::Vector3d>& previous,
-                                const std::vector<Eigen::Vector3d>& current,
-                                const Eigen::Matrix3d& rotation, double threshold, uint64_t seed);
+VerifiedRotation verifyRotation(FrameMatches& matches, const Eigen::Matrix3d& rotation, double threshold,
+                                uint64_t seed);
 
 /// The refined rotation with its uncertainty.
 struct RefinedRotation {
@@ -52,9 +76,7 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 /// lambda_min(sum n n^T), which is this cost minimised over t -- with each residual normalised to
 /// an angle (Sampson). Covariance = sigma^2 (J^T W J)^-1 for the rotation, t marginalised.
 /// `warm`: the start is already a refined rotation, so the wide first gates are skipped.
-RefinedRotation refineRotation(const std::vector<Eigen::Vector3d>& previous,
-                               const std::vector<Eigen::Vector3d>& current,
-                               const VerifiedRotation& start, double threshold, int iterations,
-                               bool warm = false);
+RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& start, double threshold,
+                               int iterations, bool warm = false);
 
 }  // namespace visual_gyro
