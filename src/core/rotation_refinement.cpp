@@ -84,15 +84,26 @@ void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
 }
 
 // Epipolar inliers of translation t among every stride-th match, from the scratch of rotateAll.
-int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, size_t stride) {
+// Only a count above `beat` is of use to the caller: the count stops, returning something no
+// larger, as soon as the matches left cannot lift it above `beat` (most sampled translations are
+// wrong and are given up after a fraction of the matches). Checked once per block, so that the
+// loop within a block has no early exit.
+int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, size_t stride, int beat) {
+  constexpr size_t kBlock = 64;
   const FrameMatches::Scratch& s = m.scratch;
   const double tx = t.x(), ty = t.y(), tz = t.z();
+  const size_t n = m.size();
+  const size_t samples = (n + stride - 1) / stride;
   int count = 0;
-  for (size_t i = 0; i < m.size(); i += stride) {
-    const double algebraic = tx * s.nx[i] + ty * s.ny[i] + tz * s.nz[i];
-    const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
-    const double trc = tx * s.rx[i] + ty * s.ry[i] + tz * s.rz[i];
-    count += s.usable[i] & withinEpipolarGate(algebraic, tp, trc, gate);
+  for (size_t block = 0; block < samples; block += kBlock) {
+    if (count + static_cast<int>(samples - block) <= beat) break;
+    const size_t end = std::min(samples, block + kBlock) * stride;
+    for (size_t i = block * stride; i < end; i += stride) {
+      const double algebraic = tx * s.nx[i] + ty * s.ny[i] + tz * s.nz[i];
+      const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
+      const double trc = tx * s.rx[i] + ty * s.ry[i] + tz * s.rz[i];
+      count += s.usable[i] & withinEpipolarGate(algebraic, tp, trc, gate);
+    }
   }
   return count;
 }
@@ -391,7 +402,8 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
       const Eigen::Vector3d t_raw = normal(a).cross(normal(b));
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();
-      const int count = static_cast<int>(sample_stride) * countEpipolarInliers(m, t, threshold, sample_stride);
+      const int beat = out.epipolar_inliers / static_cast<int>(sample_stride);
+      const int count = static_cast<int>(sample_stride) * countEpipolarInliers(m, t, threshold, sample_stride, beat);
       if (count > out.epipolar_inliers) {
         out.epipolar_inliers = count;
         out.translation = t;
@@ -399,22 +411,24 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
         trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
     }
-    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, 1);
+    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, 1, -1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
+      // The squared scale is 1 / |t x v|^2: no square root.
       Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
       const Eigen::Vector3d& t = out.translation;
       for (size_t i = 0; i < n; ++i) {
-        if (!s.usable[i]) continue;
-        const double scale = epipolarScale(t, m.previous(i), Eigen::Vector3d(s.rx[i], s.ry[i], s.rz[i]));
-        if (std::abs(t.dot(normal(i))) * scale >= threshold) continue;
-        const Eigen::Vector3d scaled = scale * normal(i);
-        M.noalias() += scaled * scaled.transpose();
+        const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
+        const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
+        const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
+        if (!s.usable[i] || !withinEpipolarGate(algebraic, tp, trc, threshold)) continue;
+        const double squared_scale = 1.0 / std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6);
+        M.noalias() += (squared_scale * normal(i)) * normal(i).transpose();
       }
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
       const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
-      const int count = countEpipolarInliers(m, refitted, threshold, 1);
+      const int count = countEpipolarInliers(m, refitted, threshold, 1, out.epipolar_inliers);
       if (count <= out.epipolar_inliers) break;
       out.epipolar_inliers = count;
       out.translation = refitted;
