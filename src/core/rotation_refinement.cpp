@@ -37,17 +37,6 @@ double epipolarScale(const Eigen::Vector3d& t, const Eigen::Vector3d& p, const E
   return 1.0 / std::sqrt(std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6));
 }
 
-// Tukey's biweight with cut-off c: matches near the gate, most likely wrong ones that slipped in,
-// lose their influence smoothly instead of pulling with a constant (Huber) force.
-double tukeyWeight(double r, double c) {
-  const double u = r / c;
-  return std::abs(u) >= 1.0 ? 0.0 : (1.0 - u * u) * (1.0 - u * u);
-}
-double tukeyCost(double r, double c) {
-  const double u = std::min(1.0, (r / c) * (r / c));
-  return c * c / 6.0 * (1.0 - (1.0 - u) * (1.0 - u) * (1.0 - u));
-}
-
 // epipolarScale(t, p, rc) * |t . normal| < gate without a square root or a division (this runs
 // for every match of every translation sample). The squared scale's inverse is at most 1, so this
 // also implies |t . normal| < gate; written without branches so the counting loops vectorise.
@@ -210,45 +199,63 @@ enum class Weighting { kTukey, kInliers };
 // the next step, so an accepted Levenberg-Marquardt step costs one pass over the matches.
 // Row of d(t . (p x R exp(d) c))/d(d, tau): t^T [p]x R (-[c]x) = -((R^T (t x p)) x c)^T
 // = -(R^T ((t x p) x Rc))^T for the rotation, n^T B for the tangent-plane translation step; the
-// sums are taken with the rotation part's R^T left out and it is applied once at the end (this
-// loop runs for every gated match in every iteration, so it is written in scalars with only the
-// 15 distinct entries of the symmetric matrix).
+// sums are taken with the rotation part's R^T left out and it is applied once at the end. This
+// runs for every gated match in every iteration, so the matches are processed in fixed-size
+// chunks of array expressions (vectorised by Eigen) and only the 15 distinct entries of the
+// symmetric matrix are summed. A chunk's unused tail holds zero bearings, whose residual and
+// Jacobian are zero: they add nothing.
 void accumulateEpipolar(const FrameMatches& m, const std::vector<uint32_t>& indices, const Eigen::Matrix3d& R,
                         const Eigen::Vector3d& t, double gate, Weighting weighting, NormalEquations* ne) {
+  constexpr int kChunk = 32;
+  using Chunk = Eigen::Array<double, kChunk, 1>;
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
   const double tx = t.x(), ty = t.y(), tz = t.z();
   double a[15] = {}, g[5] = {};
   double cost = 0.0;
   int used = 0;
-  for (const uint32_t i : indices) {
-    const double px = m.px[i], py = m.py[i], pz = m.pz[i];
-    const double rx = R(0, 0) * m.cx[i] + R(0, 1) * m.cy[i] + R(0, 2) * m.cz[i];
-    const double ry = R(1, 0) * m.cx[i] + R(1, 1) * m.cy[i] + R(1, 2) * m.cz[i];
-    const double rz = R(2, 0) * m.cx[i] + R(2, 1) * m.cy[i] + R(2, 2) * m.cz[i];
-    const double nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
-    // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
-    const double tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
-    const double scale = 1.0 / std::sqrt(std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6));
-    const double r = (tx * nx + ty * ny + tz * nz) * scale;
-    double w = 1.0;
-    if (weighting == Weighting::kTukey) {
-      cost += tukeyCost(r, gate);
-      ++used;
-      w = tukeyWeight(r, gate);
-      if (w == 0.0) continue;
-    } else {
-      if (std::abs(r) >= gate || px * rx + py * ry + pz * rz <= 0.0) continue;
-      cost += r * r;
-      ++used;
+  Chunk px, py, pz, cx, cy, cz;
+  for (size_t start = 0; start < indices.size(); start += kChunk) {
+    const int len = static_cast<int>(std::min<size_t>(kChunk, indices.size() - start));
+    for (int k = 0; k < len; ++k) {
+      const uint32_t i = indices[start + k];
+      px[k] = m.px[i];
+      py[k] = m.py[i];
+      pz[k] = m.pz[i];
+      cx[k] = m.cx[i];
+      cy[k] = m.cy[i];
+      cz[k] = m.cz[i];
     }
-    const double qx = ty * pz - tz * py, qy = tz * px - tx * pz, qz = tx * py - ty * px;  // t x p
-    const double j[5] = {qz * ry - qy * rz, qx * rz - qz * rx, qy * rx - qx * ry,
-                         nx * B(0, 0) + ny * B(1, 0) + nz * B(2, 0), nx * B(0, 1) + ny * B(1, 1) + nz * B(2, 1)};
-    const double ws = w * scale * scale, wr = w * r * scale;
+    for (Chunk* v : {&px, &py, &pz, &cx, &cy, &cz}) v->tail(kChunk - len).setZero();
+    const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
+    const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
+    const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
+    const Chunk nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
+    // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
+    const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
+    const Chunk scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
+    const Chunk r = (tx * nx + ty * ny + tz * nz) * scale;
+    Chunk w;
+    if (weighting == Weighting::kTukey) {
+      // Tukey's biweight with cut-off `gate`: matches near the gate, most likely wrong ones that
+      // slipped in, lose their influence smoothly instead of pulling with a constant (Huber) force.
+      const Chunk u2 = (r * (1.0 / gate)).square();
+      w = (u2 < 1.0).select((1.0 - u2).square(), 0.0);
+      cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).head(len).sum();
+      used += len;
+    } else {
+      w = (r.abs() < gate && px * rx + py * ry + pz * rz > 0.0).select(Chunk::Ones(), Chunk::Zero());
+      cost += (w * r.square()).sum();
+      used += static_cast<int>(w.sum());
+    }
+    const Chunk qx = ty * pz - tz * py, qy = tz * px - tx * pz, qz = tx * py - ty * px;  // t x p
+    const Chunk j[5] = {qz * ry - qy * rz, qx * rz - qz * rx, qy * rx - qx * ry,
+                        nx * B(0, 0) + ny * B(1, 0) + nz * B(2, 0), nx * B(0, 1) + ny * B(1, 1) + nz * B(2, 1)};
+    const Chunk ws = w * scale.square(), wr = w * r * scale;
     int k = 0;
     for (int row = 0; row < 5; ++row) {
-      g[row] += wr * j[row];
-      for (int col = row; col < 5; ++col) a[k++] += ws * j[row] * j[col];
+      g[row] += (wr * j[row]).sum();
+      const Chunk wj = ws * j[row];
+      for (int col = row; col < 5; ++col) a[k++] += (wj * j[col]).sum();
     }
   }
   Eigen::Matrix<double, 5, 5> A;
