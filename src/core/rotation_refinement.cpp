@@ -29,20 +29,17 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
 }
 
 // Angular distance of the match from its epipolar plane: the algebraic residual t.(p x Rc) divided
-// by the symmetric Sampson-style norm of its gradient. The algebraic residual shrinks with the
-// distance of the bearings from the epipole, so wrong matches near the focus of expansion pass an
-// algebraic gate as easily as right ones; the geometric residual treats every match alike.
-double epipolarScale(const Eigen::Vector3d& t, const Eigen::Vector3d& p, const Eigen::Vector3d& rc) {
-  const double tp = t.dot(p), trc = t.dot(rc);  // |t x v|^2 = 1 - (t.v)^2 for unit vectors
-  return 1.0 / std::sqrt(std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6));
-}
+// by the symmetric Sampson-style norm of its gradient, whose square this returns from t.p and t.Rc
+// (|t x v|^2 = 1 - (t.v)^2 for unit vectors). The algebraic residual shrinks with the distance of
+// the bearings from the epipole, so wrong matches near the focus of expansion pass an algebraic
+// gate as easily as right ones; the geometric residual treats every match alike.
+inline double sampsonNorm2(double tp, double trc) { return std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6); }
 
-// epipolarScale(t, p, rc) * |t . normal| < gate without a square root or a division (this runs
-// for every match of every translation sample). The squared scale's inverse is at most 1, so this
-// also implies |t . normal| < gate; written without branches so the counting loops vectorise.
+// The angular distance below gate without a square root or a division (this runs for every match
+// of every translation sample). The squared norm is at most 1, so this also implies
+// |t . normal| < gate.
 inline bool withinEpipolarGate(double algebraic, double tp, double trc, double gate) {
-  const double squared = std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6);  // |t x v|^2 = 1 - (t.v)^2
-  return algebraic * algebraic < gate * gate * squared;
+  return algebraic * algebraic < gate * gate * sampsonNorm2(tp, trc);
 }
 
 double huberWeight(double r, double k) {
@@ -99,24 +96,31 @@ int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double
 
 // 3.5 robust sigmas (1.4826 MAD) of the residuals below the threshold, clamped to
 // [threshold / 8, threshold], at the rotation of the last rotateAll. With t == nullptr the residual
-// is the pure-rotation one |b x R b'|.
+// is the pure-rotation one |b x R b'|. The median is taken of the squared residuals (the same
+// match's), which need no square root per match.
 double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold) {
   FrameMatches::Scratch& s = m.scratch;
-  std::vector<double>& residuals = s.residuals;
-  residuals.clear();
+  std::vector<double>& squared = s.residuals;
+  squared.clear();
+  const double threshold2 = threshold * threshold;
   for (size_t i = 0; i < m.size(); ++i) {
     if (!s.usable[i]) continue;
-    const Eigen::Vector3d normal(s.nx[i], s.ny[i], s.nz[i]);
-    const double r = t != nullptr ? std::abs(t->dot(normal)) *
-                                        epipolarScale(*t, m.previous(i), Eigen::Vector3d(s.rx[i], s.ry[i], s.rz[i]))
-                                  : normal.norm();
-    if (r < threshold) residuals.push_back(r);
+    double r2 = 0.0;
+    if (t != nullptr) {
+      const double algebraic = t->x() * s.nx[i] + t->y() * s.ny[i] + t->z() * s.nz[i];
+      const double tp = t->x() * m.px[i] + t->y() * m.py[i] + t->z() * m.pz[i];
+      const double trc = t->x() * s.rx[i] + t->y() * s.ry[i] + t->z() * s.rz[i];
+      r2 = algebraic * algebraic / sampsonNorm2(tp, trc);
+    } else {
+      r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
+    }
+    if (r2 < threshold2) squared.push_back(r2);
   }
-  if (residuals.size() < 10) return threshold;
-  const size_t mid = residuals.size() / 2;
-  std::nth_element(residuals.begin(), residuals.begin() + mid, residuals.end());
+  if (squared.size() < 10) return threshold;
+  const size_t mid = squared.size() / 2;
+  std::nth_element(squared.begin(), squared.begin() + mid, squared.end());
   // The 2-D pure-rotation residual's median is ~1.18 sigma, the 1-D |r|'s 0.67 sigma.
-  const double sigma = residuals[mid] / (t != nullptr ? 0.6745 : 1.1774);
+  const double sigma = std::sqrt(squared[mid]) / (t != nullptr ? 0.6745 : 1.1774);
   return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
 }
 
@@ -195,37 +199,48 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
-// One pass over the matches `indices` gives both the cost at (R, t) and the normal equations for
+// Chunk length of the summing passes (a multiple of every SIMD width Eigen uses for doubles).
+constexpr int kChunk = 32;
+
+// Gathers the matches `indices` into the scratch's contiguous arrays, padded with zero bearings.
+void gatherMatches(FrameMatches& m, const std::vector<uint32_t>& indices) {
+  FrameMatches::Scratch& s = m.scratch;
+  const size_t count = indices.size();
+  const size_t padded = (count + kChunk - 1) / kChunk * kChunk;
+  std::vector<double>* to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
+  const std::vector<double>* from[6] = {&m.px, &m.py, &m.pz, &m.cx, &m.cy, &m.cz};
+  for (int a = 0; a < 6; ++a) {
+    to[a]->resize(padded);
+    double* out = to[a]->data();
+    const double* in = from[a]->data();
+    for (size_t k = 0; k < count; ++k) out[k] = in[indices[k]];
+    std::fill(out + count, out + padded, 0.0);
+  }
+  s.gathered = count;
+}
+
+// One pass over the gathered matches gives both the cost at (R, t) and the normal equations for
 // the next step, so an accepted Levenberg-Marquardt step costs one pass over the matches.
 // Row of d(t . (p x R exp(d) c))/d(d, tau): t^T [p]x R (-[c]x) = -((R^T (t x p)) x c)^T
 // = -(R^T ((t x p) x Rc))^T for the rotation, n^T B for the tangent-plane translation step; the
 // sums are taken with the rotation part's R^T left out and it is applied once at the end. This
 // runs for every gated match in every iteration, so the matches are processed in fixed-size
 // chunks of array expressions (vectorised by Eigen) and only the 15 distinct entries of the
-// symmetric matrix are summed. A chunk's unused tail holds zero bearings, whose residual and
-// Jacobian are zero: they add nothing.
-void accumulateEpipolar(const FrameMatches& m, const std::vector<uint32_t>& indices, const Eigen::Matrix3d& R,
-                        const Eigen::Vector3d& t, double gate, Weighting weighting, NormalEquations* ne) {
-  constexpr int kChunk = 32;
+// symmetric matrix are summed. The padding's zero bearings have zero residual and Jacobian: they
+// add nothing.
+void accumulateEpipolar(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate,
+                        Weighting weighting, NormalEquations* ne) {
   using Chunk = Eigen::Array<double, kChunk, 1>;
+  const FrameMatches::Scratch& s = m.scratch;
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
   const double tx = t.x(), ty = t.y(), tz = t.z();
   double a[15] = {}, g[5] = {};
   double cost = 0.0;
   int used = 0;
-  Chunk px, py, pz, cx, cy, cz;
-  for (size_t start = 0; start < indices.size(); start += kChunk) {
-    const int len = static_cast<int>(std::min<size_t>(kChunk, indices.size() - start));
-    for (int k = 0; k < len; ++k) {
-      const uint32_t i = indices[start + k];
-      px[k] = m.px[i];
-      py[k] = m.py[i];
-      pz[k] = m.pz[i];
-      cx[k] = m.cx[i];
-      cy[k] = m.cy[i];
-      cz[k] = m.cz[i];
-    }
-    for (Chunk* v : {&px, &py, &pz, &cx, &cy, &cz}) v->tail(kChunk - len).setZero();
+  for (size_t start = 0; start < s.gathered; start += kChunk) {
+    const int len = static_cast<int>(std::min<size_t>(kChunk, s.gathered - start));
+    const Eigen::Map<const Chunk> px(s.gpx.data() + start), py(s.gpy.data() + start), pz(s.gpz.data() + start);
+    const Eigen::Map<const Chunk> cx(s.gcx.data() + start), cy(s.gcy.data() + start), cz(s.gcz.data() + start);
     const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
     const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
     const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
@@ -240,7 +255,7 @@ void accumulateEpipolar(const FrameMatches& m, const std::vector<uint32_t>& indi
       // slipped in, lose their influence smoothly instead of pulling with a constant (Huber) force.
       const Chunk u2 = (r * (1.0 / gate)).square();
       w = (u2 < 1.0).select((1.0 - u2).square(), 0.0);
-      cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).head(len).sum();
+      cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).sum();
       used += len;
     } else {
       w = (r.abs() < gate && px * rx + py * ry + pz * rz > 0.0).select(Chunk::Ones(), Chunk::Zero());
@@ -306,7 +321,8 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
       if (s.usable[i] && withinEpipolarGate(algebraic, tp, trc, gate_width)) gated.push_back(static_cast<uint32_t>(i));
     }
     NormalEquations here, there;
-    accumulateEpipolar(m, gated, R, t, gate_width, Weighting::kTukey, &here);
+    gatherMatches(m, gated);
+    accumulateEpipolar(m, R, t, gate_width, Weighting::kTukey, &here);
     for (int it = 0; it < round_iterations && here.used >= 6; ++it) {
       // Levenberg-Marquardt damping: under (nearly) pure rotation the translation direction is
       // unobservable and J^T W J is singular in those two columns.
@@ -316,7 +332,7 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
       if (!step.allFinite()) break;
       const Eigen::Matrix3d R_new = R * so3Exp(step.head<3>());
       const Eigen::Vector3d t_new = (t + here.B * step.tail<2>()).normalized();
-      accumulateEpipolar(m, gated, R_new, t_new, gate_width, Weighting::kTukey, &there);
+      accumulateEpipolar(m, R_new, t_new, gate_width, Weighting::kTukey, &there);
       // Converged once the rotation moves by less than kConvergedRotation. A rejected step that
       // small ends the round as well: near the minimum the cost with the Sampson scale held fixed
       // and the true cost differ by more than such a step gains, so further, more damped steps
@@ -338,7 +354,8 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   gated.resize(n);
   for (size_t i = 0; i < n; ++i) gated[i] = static_cast<uint32_t>(i);
   NormalEquations final_fit;
-  accumulateEpipolar(m, gated, R, t, threshold, Weighting::kInliers, &final_fit);
+  gatherMatches(m, gated);
+  accumulateEpipolar(m, R, t, threshold, Weighting::kInliers, &final_fit);
   const int inliers = final_fit.used;
   out.rotation = R;
   out.translation = t;
@@ -422,7 +439,7 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
-      // The squared scale is 1 / |t x v|^2: no square root.
+      // Scaled to its angular residual: the squared scale needs no square root.
       Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
       const Eigen::Vector3d& t = out.translation;
       for (size_t i = 0; i < n; ++i) {
@@ -430,7 +447,7 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
         const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
         const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
         if (!s.usable[i] || !withinEpipolarGate(algebraic, tp, trc, threshold)) continue;
-        const double squared_scale = 1.0 / std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6);
+        const double squared_scale = 1.0 / sampsonNorm2(tp, trc);
         M.noalias() += (squared_scale * normal(i)) * normal(i).transpose();
       }
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);

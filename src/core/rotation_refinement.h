@@ -29,6 +29,10 @@ class FrameMatches {
     std::vector<uint8_t> usable;     ///< b_prev and R b_cur in the same hemisphere
     std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
     std::vector<double> residuals;
+    /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur) and
+    /// padded with zero bearings to whole chunks of the pass.
+    std::vector<double> gpx, gpy, gpz, gcx, gcy, gcz;
+    size_t gathered = 0;  ///< matches gathered, without the padding
   };
   Scratch scratch;
 };
