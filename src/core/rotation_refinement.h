@@ -28,7 +28,7 @@ class FrameMatches {
     std::vector<double> nx, ny, nz;  ///< b_prev x R b_cur
     std::vector<uint8_t> usable;     ///< b_prev and R b_cur in the same hemisphere
     std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
-    std::vector<double> residuals;
+    std::vector<double> residuals;  ///< squared residuals (the adaptive gate's median)
     /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur) and
     /// padded with zero bearings to whole chunks of the pass.
     std::vector<double> gpx, gpy, gpz, gcx, gcy, gcz;
