@@ -34,9 +34,7 @@ struct FrontEndSettings {
   int max_features = 1500;      ///< at most this many corners per frame
   int grid_cols = 8;            ///< bucketing grid: corners are spread over cols x rows cells
   int grid_rows = 6;
-  /// Smoothing before BRIEF [px]: a box filter applied twice (a triangle kernel) of the odd width
-  /// whose variance is nearest sigma^2, a cheap stand-in for a Gaussian of this sigma (2: width 5).
-  double smoothing_sigma = 2.0;
+  double smoothing_sigma = 2.0;  ///< Gaussian smoothing before BRIEF [px]
   double max_ratio = 0.8;        ///< ratio test: best / second-best distance must be below
   int max_hamming = 64;          ///< matches with a larger Hamming distance are dropped
   bool cross_check = true;       ///< keep only mutual best matches
@@ -178,7 +176,6 @@ class FeatureFrontEnd {
     std::vector<int> cell_count;
     std::vector<uint8_t> redetect, chosen;
     cv::Mat smoothed;
-    std::vector<uint16_t> smoothing;  // the smoothing's fixed-point rows
     std::vector<int> row_best, row_best_d, row_second_d, col_best, col_best_d;
     // Current keypoints sorted by grid cell (guided matching): cell starts, original indices,
     // positions and descriptors in sorted order.

@@ -306,162 +306,6 @@ KernelFn selectKernel() {
   return bruteForceGeneric;
 }
 
-/// Largest box width the smoothing supports: its fixed-point sums are 16-bit (see smoothKernel).
-constexpr int kMaxBoxWidth = 15;
-
-/// Width of the box filter whose double application approximates a Gaussian of `sigma`: a box of
-/// odd width w has variance (w^2 - 1) / 12, two of them (w^2 - 1) / 6; the odd width nearest in
-/// variance (sigma 2: width 5 exactly). 1: no smoothing.
-int smoothingBoxWidth(double sigma) {
-  int best = 1;
-  for (int w = 3; w <= kMaxBoxWidth; w += 2) {
-    if (std::abs((w * w - 1) / 6.0 - sigma * sigma) < std::abs((best * best - 1) / 6.0 - sigma * sigma)) {
-      best = w;
-    }
-  }
-  return best;
-}
-
-/// Smooths `src` into `dst` with a box filter of width kWidth applied twice in each direction (a
-/// separable triangle kernel of 2 kWidth - 1 taps), borders reflected as BORDER_REFLECT_101.
-/// Box sums need only adds, so this is several times cheaper than a Gaussian of the same variance
-/// while BRIEF, which compares smoothed pixels, works as well on it. Everything runs in 16-bit
-/// lanes (twice as many per vector as 32-bit): the horizontal pass sums at most 255 kWidth^2
-/// and is rescaled to 255 * 2^frac (frac fraction bits, as many as keep the vertical sum of
-/// kWidth^2 such values below 2^16); the vertical pass keeps running box sums from row to row,
-/// which wrap around modulo 2^16 in between but are exact where they are read. `buffer` holds
-/// cols (rows + kWidth + 4) + 3 (kWidth - 1) values. Inlined into one function per instruction set.
-template <int kWidth>
-__attribute__((always_inline)) inline void smoothKernel(const cv::Mat& src, cv::Mat* dst,
-                                                        uint16_t* buffer) {
-  static_assert(kWidth % 2 == 1 && kWidth >= 3 && kWidth * kWidth <= 256, "odd width, 16-bit sums");
-  constexpr int kReach = kWidth - 1;  // half width of the triangle kernel
-  constexpr int kBoxHalf = kReach / 2;
-  constexpr int kRing = kWidth + 1;  // vertical box rows kept: those of the current triangle and one before
-  const int cols = src.cols, rows = src.rows;
-  int frac = 0;
-  while ((kWidth * kWidth << (frac + 1)) <= 256) ++frac;
-  const int denominator = kWidth * kWidth << frac;  // output = triangle sum / denominator
-  // Multiply-high factors (the top 16 bits of a 16 x 16-bit product: one vector instruction).
-  const uint16_t to_fixed = static_cast<uint16_t>(std::lround(65536.0 * (1 << frac) / (kWidth * kWidth)));
-  int shift = 0;
-  while ((2 << shift) < denominator) ++shift;
-  const uint16_t to_grey = static_cast<uint16_t>(std::lround(65536.0 * (1 << shift) / denominator));
-  const uint16_t half = static_cast<uint16_t>(denominator / 2);
-  auto reflect = [](int i, int n) { return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i); };
-
-  uint16_t* const padded = buffer;                        // one source row with reflected borders
-  uint16_t* const box = padded + cols + 2 * kReach;       // its horizontal box sums
-  uint16_t* const horizontal = box + cols + kReach;       // horizontal triangle of every row
-  uint16_t* const vertical_box = horizontal + static_cast<size_t>(cols) * rows;  // ring of box rows
-  uint16_t* const triangle = vertical_box + static_cast<size_t>(kRing) * cols;  // current row's sum
-
-  for (int y = 0; y < rows; ++y) {
-    const uint8_t* in = src.ptr<uint8_t>(y);
-    uint16_t* __restrict p = padded;
-    for (int k = 0; k < kReach; ++k) {
-      p[k] = in[reflect(k - kReach, cols)];
-      p[cols + kReach + k] = in[reflect(cols + k, cols)];
-    }
-    for (int x = 0; x < cols; ++x) p[kReach + x] = in[x];
-    uint16_t* __restrict b = box;
-    for (int x = 0; x < cols + kReach; ++x) {
-      uint16_t sum = p[x];
-      for (int j = 1; j < kWidth; ++j) sum += p[x + j];
-      b[x] = sum;
-    }
-    uint16_t* __restrict h = horizontal + static_cast<size_t>(y) * cols;
-    for (int x = 0; x < cols; ++x) {
-      uint16_t sum = b[x];
-      for (int j = 1; j < kWidth; ++j) sum += b[x + j];
-      h[x] = static_cast<uint16_t>((static_cast<uint32_t>(sum) * static_cast<uint32_t>(to_fixed)) >> 16);
-    }
-  }
-
-  auto horizontalRow = [&](int y) {
-    return horizontal + static_cast<size_t>(reflect(y, rows)) * cols;
-  };
-  // Vertical box sum centred on row j (j >= -kBoxHalf).
-  auto boxRow = [&](int j) {
-    return vertical_box + static_cast<size_t>((j + kBoxHalf + kRing) % kRing) * cols;
-  };
-  uint16_t* __restrict t = triangle;
-  for (int y = 0; y < rows; ++y) {
-    if (y == 0) {
-      // The first row's box sums and triangle from scratch, every later one by running sums.
-      uint16_t* __restrict first = boxRow(-kBoxHalf);
-      for (int x = 0; x < cols; ++x) first[x] = 0;
-      for (int k = -kReach; k <= 0; ++k) {
-        const uint16_t* __restrict hk = horizontalRow(k);
-        for (int x = 0; x < cols; ++x) first[x] += hk[x];
-      }
-      for (int j = -kBoxHalf + 1; j <= kBoxHalf; ++j) {
-        uint16_t* __restrict bj = boxRow(j);
-        const uint16_t* __restrict prev = boxRow(j - 1);
-        const uint16_t* __restrict add = horizontalRow(j + kBoxHalf);
-        const uint16_t* __restrict sub = horizontalRow(j - kBoxHalf - 1);
-        for (int x = 0; x < cols; ++x) bj[x] = static_cast<uint16_t>(prev[x] + add[x] - sub[x]);
-      }
-      for (int x = 0; x < cols; ++x) t[x] = 0;
-      for (int j = -kBoxHalf; j <= kBoxHalf; ++j) {
-        const uint16_t* __restrict bj = boxRow(j);
-        for (int x = 0; x < cols; ++x) t[x] += bj[x];
-      }
-    } else {
-      const int j = y + kBoxHalf;
-      uint16_t* __restrict bj = boxRow(j);
-      const uint16_t* __restrict prev = boxRow(j - 1);
-      const uint16_t* __restrict add = horizontalRow(j + kBoxHalf);
-      const uint16_t* __restrict sub = horizontalRow(j - kBoxHalf - 1);
-      const uint16_t* __restrict leaving = boxRow(y - kBoxHalf - 1);
-      for (int x = 0; x < cols; ++x) {
-        const uint16_t v = static_cast<uint16_t>(prev[x] + add[x] - sub[x]);
-        bj[x] = v;
-        t[x] = static_cast<uint16_t>(t[x] + v - leaving[x]);
-      }
-    }
-    uint8_t* __restrict out = dst->ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x) {
-      const uint16_t rounded = static_cast<uint16_t>(t[x] + half);
-      const uint16_t high = static_cast<uint16_t>(
-          (static_cast<uint32_t>(rounded) * static_cast<uint32_t>(to_grey)) >> 16);
-      out[x] = static_cast<uint8_t>(high >> shift);
-    }
-  }
-}
-
-using SmoothFn = void (*)(const cv::Mat&, cv::Mat*, uint16_t*);
-
-template <int kWidth>
-void smoothGeneric(const cv::Mat& src, cv::Mat* dst, uint16_t* buffer) {
-  smoothKernel<kWidth>(src, dst, buffer);
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// Twice the lanes per instruction; used only when the CPU reports AVX2 (runtime dispatch).
-template <int kWidth>
-__attribute__((target("avx2"))) void smoothAvx2(const cv::Mat& src, cv::Mat* dst, uint16_t* buffer) {
-  smoothKernel<kWidth>(src, dst, buffer);
-}
-#endif
-
-template <int kWidth>
-SmoothFn selectSmoothing() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return smoothAvx2<kWidth>;
-#endif
-  return smoothGeneric<kWidth>;
-}
-
-/// The smoothing function for an odd box width in [3, kMaxBoxWidth].
-SmoothFn smoothingFor(int width) {
-  static const std::array<SmoothFn, kMaxBoxWidth / 2> table = {
-      selectSmoothing<3>(),  selectSmoothing<5>(),  selectSmoothing<7>(),  selectSmoothing<9>(),
-      selectSmoothing<11>(), selectSmoothing<13>(), selectSmoothing<15>()};
-  return table[width / 2 - 1];
-}
-
 /// BRIEF bits from the gathered test pixels: bit i = first[i] < second[i] (both 16-byte aligned).
 BriefDescriptor compareTests(const uint8_t* first, const uint8_t* second) {
   BriefDescriptor descriptor{};
@@ -501,9 +345,8 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
       intField<S>("max_features", &S::max_features, 1, 20000, "", "corners per frame at most"),
       intField<S>("grid_cols", &S::grid_cols, 1, 64, "", "bucketing grid columns"),
       intField<S>("grid_rows", &S::grid_rows, 1, 64, "", "bucketing grid rows"),
-      doubleField<S>("smoothing_sigma", &S::smoothing_sigma, 0.0, 6.0, "px",
-                     "smoothing before BRIEF: two box filters of the odd width whose variance is nearest "
-                     "sigma^2 (2: width 5; below about 0.82: none)"),
+      doubleField<S>("smoothing_sigma", &S::smoothing_sigma, 0.0, 20.0, "px",
+                     "Gaussian smoothing before BRIEF (0: none)"),
       doubleField<S>("max_ratio", &S::max_ratio, 0.01, 1.0, "", "ratio test: best / second-best Hamming distance below this"),
       intField<S>("max_hamming", &S::max_hamming, 0, 256, "bits", "largest Hamming distance of a match"),
       boolField<S>("cross_check", &S::cross_check, "keep only mutual best matches"),
@@ -735,15 +578,15 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
     return;
   }
 
-  cv::Mat smoothed = gray;
-  const int box_width = smoothingBoxWidth(settings_.smoothing_sigma);
-  if (box_width > 1) {
-    const size_t buffer_size =
-        static_cast<size_t>(width) * (height + box_width + 4) + 3 * (box_width - 1);
-    if (work_.smoothing.size() < buffer_size) work_.smoothing.resize(buffer_size);
-    work_.smoothed.create(height, width, CV_8UC1);
-    smoothingFor(box_width)(gray, &work_.smoothed, work_.smoothing.data());
+  cv::Mat smoothed;
+  if (settings_.smoothing_sigma > 0.0) {
+    // Kernel covering +-3 sigma, odd.
+    const int ksize = 2 * static_cast<int>(std::ceil(3.0 * settings_.smoothing_sigma)) + 1;
+    cv::GaussianBlur(gray, work_.smoothed, cv::Size(ksize, ksize), settings_.smoothing_sigma,
+                     settings_.smoothing_sigma, cv::BORDER_REFLECT_101);
     smoothed = work_.smoothed;
+  } else {
+    smoothed = gray;
   }
 
   // Pattern offsets as byte offsets in the smoothed image, computed once per call.
