@@ -176,6 +176,7 @@ class FeatureFrontEnd {
     std::vector<int> cell_count;
     std::vector<uint8_t> redetect, chosen;
     cv::Mat smoothed;
+    std::vector<uint16_t> smoothing;  // the Gaussian's fixed-point rows
     std::vector<int> row_best, row_best_d, row_second_d, col_best, col_best_d;
     // Current keypoints sorted by grid cell (guided matching): cell starts, original indices,
     // positions and descriptors in sorted order.
