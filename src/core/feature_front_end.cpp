@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <numeric>
 #include <opencv2/features2d.hpp>
@@ -97,8 +96,7 @@ int keyY(uint64_t key) { return 0xFFFF - static_cast<int>((key >> 16) & 0xFFFF);
 
 /// Sorts candidate keys in descending order: five 8-bit radix passes over their 40 bits, linear in
 /// the count (a comparison sort of a few thousand corners took about a tenth of the detection
-/// time).
-/// `scratch` is working room of the same size.
+/// time). `scratch` is working room of the same size.
 void sortKeysDescending(std::vector<uint64_t>* keys, std::vector<uint64_t>* scratch) {
   scratch->resize(keys->size());
   uint64_t* from = keys->data();
