@@ -177,6 +177,11 @@ class FeatureFrontEnd {
     std::vector<uint8_t> redetect, chosen;
     cv::Mat smoothed;
     std::vector<uint16_t> smoothing;  // the Gaussian's fixed-point rows
+    // OpenCV's fixed-point Gaussian weights (centre first) for gaussian_sigma, and whether the
+    // package's filter reproduces cv::GaussianBlur with them (checked once per sigma).
+    std::array<uint16_t, 7> gaussian_weights{};
+    double gaussian_sigma = -1.0;
+    bool gaussian_exact = false;
     std::vector<int> row_best, row_best_d, row_second_d, col_best, col_best_d;
     // Current keypoints sorted by grid cell (guided matching): cell starts, original indices,
     // positions and descriptors in sorted order.
