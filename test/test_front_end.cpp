@@ -150,34 +150,6 @@ TEST(FrontEnd, BucketingSpreadsCornersOverEveryTexturedCell) {
   EXPECT_LT(in_right, 10) << "the weak half should lose without bucketing";
 }
 
-TEST(FrontEnd, AdaptiveDetectionFindsTheSameCornersWithOnePassAtTheFloor) {
-  // Left half textured, right half at a tenth of the contrast: too few strong corners for the
-  // budget, so the sparse cells take their floor corners while the textured ones keep the strong.
-  cv::Mat image = syntheticTexture(800, 480, 17);
-  cv::Mat right = image(cv::Rect(400, 0, 400, 480));
-  right.convertTo(right, CV_8U, 0.1, 110);
-  FrontEndSettings settings;
-  settings.max_features = 8000;
-  FrontEndSettings strong_only = settings;
-  strong_only.min_fast_threshold = strong_only.fast_threshold;
-  const std::vector<cv::Point2f> strong = FeatureFrontEnd(strong_only).detect(image);
-  ASSERT_LT(strong.size(), 8000u) << "the image must be short of strong corners";
-
-  // A fresh front end detects at fast_threshold, then again per short cell; one that has just
-  // seen a short frame makes one pass at min_fast_threshold. Both must select the same corners.
-  const FeatureFrontEnd fresh(settings);
-  const std::vector<cv::Point2f> two_passes = fresh.detect(image);
-  const FeatureFrontEnd warmed(settings);
-  warmed.detect(image);
-  const std::vector<cv::Point2f> one_pass = warmed.detect(image);
-  EXPECT_GT(two_passes.size(), strong.size());
-  EXPECT_EQ(one_pass, two_passes);
-
-  // And a textured frame after a short one: back to the strong corners only.
-  const cv::Mat textured = syntheticTexture(800, 480, 18);
-  EXPECT_EQ(warmed.detect(textured), FeatureFrontEnd(settings).detect(textured));
-}
-
 TEST(FrontEnd, MaxFeaturesAndBorderRespected) {
   const cv::Mat image = syntheticTexture(640, 480, 3);
   for (int max_features : {1, 10, 47, 500, 1500}) {

@@ -170,9 +170,6 @@ class FeatureFrontEnd {
     // Grid cell of each pixel column and row, for the grid they were built for.
     std::vector<int> cell_of_x, cell_of_y;
     cv::Size grid_size;
-    // The last frame's strong corners could not fill max_features: detect the next one with one
-    // pass at min_fast_threshold (the same corners, found more cheaply when it is short too).
-    bool floor_pass = false;
     std::vector<int> cell_count;
     std::vector<uint8_t> redetect, chosen;
     cv::Mat smoothed;

@@ -538,109 +538,73 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   }
   // FAST corners lie on whole pixels inside the image.
   auto cellOf = [&](uint64_t key) { return w.cell_of_x[keyX(key)] + w.cell_of_y[keyY(key)]; };
-  auto keyScore = [](uint64_t key) { return static_cast<int>((key >> 32) & 0xFF); };
 
   const size_t budget = static_cast<size_t>(settings_.max_features);
   const int per_cell = static_cast<int>(budget / n_cells);
 
-  // Adaptive threshold: when the strong corners (at fast_threshold) cannot fill the budget, each
-  // cell short of its share takes every corner found at the floor threshold instead, as ORB-SLAM
-  // does, so dim or low-contrast regions still contribute corners while textured ones keep only
-  // their strong corners. (When they can, the budget is filled with strong corners and the floor
-  // corners would only swap some of them for weak ones, at the cost of a low-threshold pass.)
-  const bool adaptive = settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0;
-  // A cell's floor corners are those of a FAST pass over the cell widened by what their tests
-  // read (the 3 px circle, and 1 px more for the neighbours' scores in the non-max suppression),
-  // so they are exactly the floor corners of the whole image that lie in the cell.
-  constexpr int kFastRadius = 3;
-  constexpr int kFastReach = kFastRadius + 1;
-  auto searchArea = [&](int cell) {
-    const int cx = cell % cols, cy = cell / cols;
-    // Cell bounds as cell_of_x and cell_of_y assign them: x in [x0, x1), y in [y0, y1).
-    const int x0 = (cx * width + cols - 1) / cols, x1 = ((cx + 1) * width + cols - 1) / cols;
-    const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
-    const int rx0 = std::max(0, x0 - kFastReach), ry0 = std::max(0, y0 - kFastReach);
-    const int rx1 = std::min(width, x1 + kFastReach), ry1 = std::min(height, y1 + kFastReach);
-    return cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0);
-  };
-  // Cells short of their share take the floor corners (a cell too small for FAST keeps what it
-  // has).
-  auto markShortCells = [&]() {
+  // FAST only where a corner can be kept, widened by what the kept corners' tests read (their
+  // 3 px circle, and the scores of their neighbours for the non-max suppression, 1 px further):
+  // the same corners as on the whole image, without scoring the border strip that is dropped.
+  constexpr int kFastMargin = 4;
+  const int margin = kDetectBorder - kFastMargin;
+  const cv::Rect fast_area(margin, margin, width - 2 * margin, height - 2 * margin);
+  cv::FAST(gray(fast_area), w.corners, settings_.fast_threshold, /*nonmaxSuppression=*/true,
+           cv::FastFeatureDetector::TYPE_9_16);
+  w.candidates.clear();
+  w.cell_count.assign(n_cells, 0);
+  for (const cv::KeyPoint& kp : w.corners) {
+    const int x = static_cast<int>(kp.pt.x) + margin, y = static_cast<int>(kp.pt.y) + margin;
+    if (!inside(x, y)) continue;
+    const uint64_t key = candidateKey(kp.response, x, y);
+    w.candidates.push_back(key);
+    ++w.cell_count[cellOf(key)];
+  }
+
+  // Adaptive threshold: when the strong corners cannot fill the budget, each cell short of its
+  // share is detected again at the floor threshold, as ORB-SLAM does, so dim or low-contrast
+  // regions still contribute corners while textured ones keep only their strong corners. (When
+  // they can, the budget is filled with strong corners and a second FAST pass would only swap some
+  // of them for weak ones, at the cost of a low-threshold pass over every sparse cell.) FAST's
+  // score is the largest threshold at which a pixel is still a corner, so the corners that passed
+  // the first threshold are found again (and ranked first).
+  if (settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0 &&
+      w.candidates.size() < budget) {
+    // FAST needs 3 pixels around a candidate: the cell is widened by that much, then only corners
+    // inside the cell itself are kept.
+    constexpr int kFastRadius = 3;
+    auto searchArea = [&](int cell) {
+      const int cx = cell % cols, cy = cell / cols;
+      // Cell bounds as cell_of_x and cell_of_y assign them: x in [x0, x1), y in [y0, y1).
+      const int x0 = (cx * width + cols - 1) / cols, x1 = ((cx + 1) * width + cols - 1) / cols;
+      const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
+      const int rx0 = std::max(0, x0 - kFastRadius), ry0 = std::max(0, y0 - kFastRadius);
+      const int rx1 = std::min(width, x1 + kFastRadius), ry1 = std::min(height, y1 + kFastRadius);
+      return cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0);
+    };
+    // The short cells' strong corners are replaced by everything found at the floor (a cell too
+    // small for FAST keeps what it has).
     w.redetect.assign(n_cells, 0);
     for (int c = 0; c < n_cells; ++c) {
       const cv::Rect area = searchArea(c);
       w.redetect[c] = w.cell_count[c] < per_cell && area.width >= 2 * kFastRadius + 1 &&
                       area.height >= 2 * kFastRadius + 1;
     }
-  };
-  // FAST only where a corner can be kept, widened by what the kept corners' tests read: the same
-  // corners as on the whole image, without scoring the border strip that is dropped.
-  const int margin = kDetectBorder - kFastReach;
-  const cv::Rect fast_area(margin, margin, width - 2 * margin, height - 2 * margin);
-
-  w.candidates.clear();
-  w.cell_count.assign(n_cells, 0);
-  bool short_frame = false;
-  if (adaptive && w.floor_pass) {
-    // The previous frame was short of strong corners, so this one probably is too: one FAST pass
-    // at the floor instead of one at fast_threshold and another over most cells at the floor.
-    // FAST's score is the largest threshold at which a pixel is still a corner (minus one), and
-    // non-max suppression keeps a pixel whose score beats its neighbours', so the corners scoring
-    // at least fast_threshold are exactly those a pass at fast_threshold finds: the selection
-    // is the same either way, only the cost differs.
-    cv::FAST(gray(fast_area), w.corners, settings_.min_fast_threshold, /*nonmaxSuppression=*/true,
-             cv::FastFeatureDetector::TYPE_9_16);
-    size_t strong = 0;
-    for (const cv::KeyPoint& kp : w.corners) {
-      const int x = static_cast<int>(kp.pt.x) + margin, y = static_cast<int>(kp.pt.y) + margin;
-      if (!inside(x, y)) continue;
-      const uint64_t key = candidateKey(kp.response, x, y);
-      w.candidates.push_back(key);
-      if (keyScore(key) >= settings_.fast_threshold) {
-        ++w.cell_count[cellOf(key)];
-        ++strong;
-      }
-    }
-    short_frame = strong < budget;
-    if (short_frame) markShortCells();
     w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
-                                      [&](uint64_t key) {
-                                        return keyScore(key) < settings_.fast_threshold &&
-                                               !(short_frame && w.redetect[cellOf(key)] != 0);
-                                      }),
+                                      [&](uint64_t key) { return w.redetect[cellOf(key)] != 0; }),
                        w.candidates.end());
-  } else {
-    cv::FAST(gray(fast_area), w.corners, settings_.fast_threshold, /*nonmaxSuppression=*/true,
-             cv::FastFeatureDetector::TYPE_9_16);
-    for (const cv::KeyPoint& kp : w.corners) {
-      const int x = static_cast<int>(kp.pt.x) + margin, y = static_cast<int>(kp.pt.y) + margin;
-      if (!inside(x, y)) continue;
-      const uint64_t key = candidateKey(kp.response, x, y);
-      w.candidates.push_back(key);
-      ++w.cell_count[cellOf(key)];
-    }
-    short_frame = adaptive && w.candidates.size() < budget;
-    if (short_frame) {
-      // The short cells' strong corners are replaced by their floor corners (which include them).
-      markShortCells();
-      w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
-                                        [&](uint64_t key) { return w.redetect[cellOf(key)] != 0; }),
-                         w.candidates.end());
-      for (int cell = 0; cell < n_cells; ++cell) {
-        if (!w.redetect[cell]) continue;
-        const cv::Rect area = searchArea(cell);
-        cv::FAST(gray(area), w.cell_corners, settings_.min_fast_threshold,
-                 /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
-        for (const cv::KeyPoint& kp : w.cell_corners) {
-          const int x = static_cast<int>(kp.pt.x) + area.x, y = static_cast<int>(kp.pt.y) + area.y;
-          if (!inside(x, y)) continue;
-          const uint64_t key = candidateKey(kp.response, x, y);
-          if (cellOf(key) == cell) w.candidates.push_back(key);
-        }
+    for (int cell = 0; cell < n_cells; ++cell) {
+      if (!w.redetect[cell]) continue;
+      const cv::Rect area = searchArea(cell);
+      cv::FAST(gray(area), w.cell_corners, settings_.min_fast_threshold,
+               /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
+      for (const cv::KeyPoint& kp : w.cell_corners) {
+        const int x = static_cast<int>(kp.pt.x) + area.x, y = static_cast<int>(kp.pt.y) + area.y;
+        if (!inside(x, y)) continue;
+        const uint64_t key = candidateKey(kp.response, x, y);
+        if (cellOf(key) == cell) w.candidates.push_back(key);
       }
     }
   }
-  w.floor_pass = short_frame;
 
   // Bucketing: an equal share per cell first, so texture-rich regions cannot take the whole
   // budget; the unused share of sparse cells then goes to the strongest corners left anywhere.
