@@ -165,19 +165,24 @@ class FeatureFrontEnd {
   /// Reused buffers (see the class comment).
   struct Workspace {
     std::vector<cv::KeyPoint> corners, cell_corners;
-    struct Candidate {  // a detected corner: sort key (strongest first), grid cell, position
-      uint64_t key;
-      int cell;
-      cv::Point2f point;
-    };
-    std::vector<Candidate> candidates;
+    // Detected corners as sort keys (strength above position; see candidateKey in the .cpp).
+    std::vector<uint64_t> candidates, sort_scratch;
+    // Grid cell of each pixel column and row, for the grid they were built for.
+    std::vector<int> cell_of_x, cell_of_y;
+    cv::Size grid_size;
     std::vector<int> cell_count;
     std::vector<uint8_t> redetect, chosen;
     cv::Mat smoothed;
+    std::vector<uint16_t> smoothing;  // the Gaussian's fixed-point rows
+    // OpenCV's fixed-point Gaussian weights (centre first) for gaussian_sigma, and whether the
+    // package's filter reproduces cv::GaussianBlur with them (checked once per sigma).
+    std::array<uint16_t, 7> gaussian_weights{};
+    double gaussian_sigma = -1.0;
+    bool gaussian_exact = false;
     std::vector<int> row_best, row_best_d, row_second_d, col_best, col_best_d;
     // Current keypoints sorted by grid cell (guided matching): cell starts, original indices,
     // positions and descriptors in sorted order.
-    std::vector<int> grid_start, grid_items, grid_cursor;
+    std::vector<int> grid_start, grid_items, grid_cursor, grid_inside;
     std::vector<cv::Point2f> grid_points;
     std::vector<BriefDescriptor> grid_descriptors;
   };
