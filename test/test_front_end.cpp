@@ -12,6 +12,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "fixed_point_gaussian.h"
 #include "test_support.h"
 #include "visual_gyro/feature_front_end.h"
 
@@ -542,6 +543,27 @@ TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {
   EXPECT_THROW(on.refineMatches(flat, cv::Mat(50, 50, CV_8UC1), a, b, &matches), std::invalid_argument);
   cv::Mat colour(100, 100, CV_8UC3);
   EXPECT_THROW(on.refineMatches(flat, colour, a, b, &matches), std::invalid_argument);
+}
+
+// The package's fixed-point Gaussian (the default smoothing) must be cv::GaussianBlur bit for
+// bit: the descriptors, and so every figure, are the same as with OpenCV's filter.
+TEST(FixedPointGaussian, SameAsOpenCvBitForBit) {
+  namespace fpg = fixed_point_gaussian;
+  const fpg::Filter filter = fpg::selectFilter();
+  // Sigmas whose OpenCV kernel has kTaps taps; image sizes with odd widths, a KITTI frame, and
+  // images smaller than the kernel (reflection on both sides).
+  for (const double sigma : {1.7, 1.85, 2.0}) {
+    fpg::Weights weights{};
+    ASSERT_TRUE(fpg::readWeights(sigma, filter, &weights)) << "sigma " << sigma;
+    for (const cv::Size size : {cv::Size(1241, 376), cv::Size(752, 480), cv::Size(33, 17), cv::Size(9, 7)}) {
+      const cv::Mat image = syntheticTexture(size.width, size.height, 11 + size.width);
+      cv::Mat expected, ours(image.size(), CV_8UC1);
+      cv::GaussianBlur(image, expected, cv::Size(fpg::kTaps, fpg::kTaps), sigma, sigma, cv::BORDER_REFLECT_101);
+      std::vector<uint16_t> buffer(fpg::bufferSize(image.cols, image.rows));
+      filter(image, weights, &ours, buffer.data());
+      EXPECT_EQ(cv::countNonZero(ours != expected), 0) << "sigma " << sigma << ", " << size;
+    }
+  }
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // FAST corners with grid bucketing, BRIEF-256 descriptors and brute-force Hamming matching.
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/random.h"
+#include "fixed_point_gaussian.h"
 
 #include <algorithm>
 #include <cmath>
@@ -304,122 +305,6 @@ KernelFn selectKernel() {
   return bruteForceGeneric;
 }
 
-/// Taps of the Gaussian kernel that gaussianKernel computes (sigma in (5/3, 2], the default 2).
-constexpr int kGaussianTaps = 13;
-constexpr int kGaussianHalf = kGaussianTaps / 2;
-/// Weights w[0] (centre) .. w[kGaussianHalf] in units of 1/256; they sum to 256.
-using GaussianWeights = std::array<uint16_t, kGaussianHalf + 1>;
-static_assert(kGaussianHalf + 1 == 7, "FeatureFrontEnd::Workspace::gaussian_weights holds 7 weights");
-
-/// The same result as cv::GaussianBlur (kGaussianTaps x kGaussianTaps, BORDER_REFLECT_101) on an
-/// 8-bit image, bit for bit, given the weights of OpenCV's fixed-point kernel: OpenCV computes
-/// H = sum w p (8 fraction bits) per row, then (sum w H + 2^15) >> 16 per column, in 32-bit
-/// lanes. Here everything stays in 16-bit lanes (twice as many per instruction): H fits (at most
-/// 255 * 256), and the column sum is taken over H's high and low bytes separately (each sum at
-/// most 255 * 256), which recombine exactly: (A + 128 + (B >> 8)) >> 8 with A the high bytes' sum
-/// and B the low bytes'. Symmetric taps share a multiply. `buffer` holds
-/// cols (rows + 2) + kGaussianTaps - 1 values. Inlined into one function per instruction set.
-__attribute__((always_inline)) inline void gaussianKernel(const cv::Mat& src, const GaussianWeights& w,
-                                                          cv::Mat* dst, uint16_t* buffer) {
-  constexpr int kHalf = kGaussianHalf;
-  const int cols = src.cols, rows = src.rows;
-  auto reflect = [](int i, int n) { return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i); };
-
-  uint16_t* const horizontal = buffer;  // every row after the horizontal pass
-  uint16_t* const padded = horizontal + static_cast<size_t>(cols) * rows;  // one source row
-  for (int y = 0; y < rows; ++y) {
-    const uint8_t* in = src.ptr<uint8_t>(y);
-    uint16_t* __restrict p = padded;
-    for (int k = 0; k < kHalf; ++k) {
-      p[k] = in[reflect(k - kHalf, cols)];
-      p[cols + kHalf + k] = in[reflect(cols + k, cols)];
-    }
-    for (int x = 0; x < cols; ++x) p[kHalf + x] = in[x];
-    uint16_t* __restrict h = horizontal + static_cast<size_t>(y) * cols;
-    for (int x = 0; x < cols; ++x) {
-      uint16_t acc = static_cast<uint16_t>(w[0] * p[x + kHalf]);
-      for (int k = 1; k <= kHalf; ++k) {
-        acc = static_cast<uint16_t>(acc + w[k] * static_cast<uint16_t>(p[x + kHalf - k] + p[x + kHalf + k]));
-      }
-      h[x] = acc;
-    }
-  }
-  uint16_t* __restrict high = padded;      // the row's sums over the high bytes (A)
-  uint16_t* __restrict low = padded + cols;  // and over the low bytes (B)
-  for (int y = 0; y < rows; ++y) {
-    // One pair of taps at a time over the whole row: few streams per loop, which vectorise.
-    {
-      const uint16_t* __restrict c = horizontal + static_cast<size_t>(y) * cols;
-      const uint16_t weight = w[0];
-      for (int x = 0; x < cols; ++x) {
-        high[x] = static_cast<uint16_t>(weight * (c[x] >> 8));
-        low[x] = static_cast<uint16_t>(weight * (c[x] & 0xFF));
-      }
-    }
-    for (int k = 1; k <= kHalf; ++k) {
-      const uint16_t* __restrict a = horizontal + static_cast<size_t>(reflect(y - k, rows)) * cols;
-      const uint16_t* __restrict b = horizontal + static_cast<size_t>(reflect(y + k, rows)) * cols;
-      const uint16_t weight = w[k];
-      for (int x = 0; x < cols; ++x) {
-        high[x] = static_cast<uint16_t>(high[x] + weight * static_cast<uint16_t>((a[x] >> 8) + (b[x] >> 8)));
-        low[x] = static_cast<uint16_t>(low[x] + weight * static_cast<uint16_t>((a[x] & 0xFF) + (b[x] & 0xFF)));
-      }
-    }
-    uint8_t* __restrict out = dst->ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x) {
-      out[x] = static_cast<uint8_t>(static_cast<uint16_t>(high[x] + 128 + (low[x] >> 8)) >> 8);
-    }
-  }
-}
-
-using GaussianFn = void (*)(const cv::Mat&, const GaussianWeights&, cv::Mat*, uint16_t*);
-
-void gaussianGeneric(const cv::Mat& src, const GaussianWeights& w, cv::Mat* dst, uint16_t* buffer) {
-  gaussianKernel(src, w, dst, buffer);
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// Twice the lanes per instruction; used only when the CPU reports AVX2 (runtime dispatch).
-__attribute__((target("avx2"))) void gaussianAvx2(const cv::Mat& src, const GaussianWeights& w,
-                                                  cv::Mat* dst, uint16_t* buffer) {
-  gaussianKernel(src, w, dst, buffer);
-}
-#endif
-
-GaussianFn selectGaussian() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return gaussianAvx2;
-#endif
-  return gaussianGeneric;
-}
-
-/// OpenCV's fixed-point weights for kGaussianTaps taps and `sigma`, read back from
-/// cv::GaussianBlur itself (a single pixel of 255 filtered by the one-dimensional kernel comes out
-/// as round(255 w / 256) = w, every weight being below 128), then checked: the package's filter
-/// must give cv::GaussianBlur's result bit for bit on a test image. False when it does not (an
-/// OpenCV build with another algorithm): cv::GaussianBlur is used then.
-bool readGaussianWeights(double sigma, GaussianFn filter, GaussianWeights* w) {
-  cv::Mat probe = cv::Mat::zeros(1, 3 * kGaussianTaps, CV_8UC1);
-  probe.at<uint8_t>(0, kGaussianTaps) = 255;
-  cv::Mat response;
-  cv::GaussianBlur(probe, response, cv::Size(kGaussianTaps, 1), sigma, sigma, cv::BORDER_REFLECT_101);
-  int sum = 0;
-  for (int k = 0; k <= kGaussianHalf; ++k) {
-    (*w)[k] = response.at<uint8_t>(0, kGaussianTaps + k);
-    sum += k == 0 ? (*w)[k] : 2 * (*w)[k];
-  }
-  if (sum != 256 || (*w)[0] >= 128) return false;
-  cv::Mat test(61, 67, CV_8UC1);
-  cv::RNG(0x5eed).fill(test, cv::RNG::UNIFORM, 0, 256);
-  cv::Mat expected, ours(test.size(), CV_8UC1);
-  cv::GaussianBlur(test, expected, cv::Size(kGaussianTaps, kGaussianTaps), sigma, sigma,
-                   cv::BORDER_REFLECT_101);
-  std::vector<uint16_t> buffer(static_cast<size_t>(test.cols) * (test.rows + 2) + kGaussianTaps - 1);
-  filter(test, *w, &ours, buffer.data());
-  return cv::countNonZero(ours != expected) == 0;
-}
-
 /// BRIEF bits from the gathered test pixels: bit i = first[i] < second[i] (both 16-byte aligned).
 BriefDescriptor compareTests(const uint8_t* first, const uint8_t* second) {
   BriefDescriptor descriptor{};
@@ -663,13 +548,14 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
     // The default sigma's kernel: the package's filter, the same result as cv::GaussianBlur in
     // about two thirds of the time or less (with AVX2). Its weights are read from OpenCV whenever
     // sigma changes.
-    static const GaussianFn gaussian = selectGaussian();
-    if (ksize == kGaussianTaps && work_.gaussian_sigma != settings_.smoothing_sigma) {
+    static const fixed_point_gaussian::Filter gaussian = fixed_point_gaussian::selectFilter();
+    if (ksize == fixed_point_gaussian::kTaps && work_.gaussian_sigma != settings_.smoothing_sigma) {
       work_.gaussian_sigma = settings_.smoothing_sigma;
-      work_.gaussian_exact = readGaussianWeights(settings_.smoothing_sigma, gaussian, &work_.gaussian_weights);
+      work_.gaussian_exact =
+          fixed_point_gaussian::readWeights(settings_.smoothing_sigma, gaussian, &work_.gaussian_weights);
     }
-    if (ksize == kGaussianTaps && work_.gaussian_exact) {
-      const size_t buffer_size = static_cast<size_t>(width) * (height + 2) + kGaussianTaps - 1;
+    if (ksize == fixed_point_gaussian::kTaps && work_.gaussian_exact) {
+      const size_t buffer_size = fixed_point_gaussian::bufferSize(width, height);
       if (work_.smoothing.size() < buffer_size) work_.smoothing.resize(buffer_size);
       work_.smoothed.create(height, width, CV_8UC1);
       gaussian(gray, work_.gaussian_weights, &work_.smoothed, work_.smoothing.data());
