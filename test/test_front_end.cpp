@@ -549,19 +549,32 @@ TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {
 // bit: the descriptors, and so every figure, are the same as with OpenCV's filter.
 TEST(FixedPointGaussian, SameAsOpenCvBitForBit) {
   namespace fpg = fixed_point_gaussian;
-  const fpg::Filter filter = fpg::selectFilter();
-  // Sigmas whose OpenCV kernel has kTaps taps; image sizes with odd widths, a KITTI frame, and
-  // images smaller than the kernel (reflection on both sides).
-  for (const double sigma : {1.7, 1.85, 2.0}) {
-    fpg::Weights weights{};
-    ASSERT_TRUE(fpg::readWeights(sigma, filter, &weights)) << "sigma " << sigma;
-    for (const cv::Size size : {cv::Size(1241, 376), cv::Size(752, 480), cv::Size(33, 17), cv::Size(9, 7)}) {
-      const cv::Mat image = syntheticTexture(size.width, size.height, 11 + size.width);
-      cv::Mat expected, ours(image.size(), CV_8UC1);
-      cv::GaussianBlur(image, expected, cv::Size(fpg::kTaps, fpg::kTaps), sigma, sigma, cv::BORDER_REFLECT_101);
-      std::vector<uint16_t> buffer(fpg::bufferSize(image.cols, image.rows));
-      filter(image, weights, &ours, buffer.data());
-      EXPECT_EQ(cv::countNonZero(ours != expected), 0) << "sigma " << sigma << ", " << size;
+  // Every filter this CPU runs (the portable one, and the AVX2 one where the CPU has it), not only
+  // the one selectFilter() picks. Sigmas whose OpenCV kernel has kTaps taps; image sizes with odd
+  // widths, a KITTI frame, and images smaller than the kernel (reflection on both sides) or
+  // narrower than a vector.
+  for (const auto& [name, filter] : fpg::availableFilters()) {
+    for (const double sigma : {1.7, 1.85, 2.0}) {
+      fpg::Weights weights{};
+      ASSERT_TRUE(fpg::readWeights(sigma, filter, &weights)) << name << ", sigma " << sigma;
+      for (const cv::Size size : {cv::Size(1241, 376), cv::Size(752, 480), cv::Size(33, 17), cv::Size(9, 7),
+                                  cv::Size(15, 40), cv::Size(16, 13)}) {
+        const cv::Mat image = syntheticTexture(size.width, size.height, 11 + size.width);
+        cv::Mat expected, ours(image.size(), CV_8UC1);
+        cv::GaussianBlur(image, expected, cv::Size(fpg::kTaps, fpg::kTaps), sigma, sigma, cv::BORDER_REFLECT_101);
+        std::vector<uint16_t> buffer(fpg::bufferSize(image.cols, image.rows));
+        filter(image, weights, &ours, buffer.data());
+        EXPECT_EQ(cv::countNonZero(ours != expected), 0) << name << ", sigma " << sigma << ", " << size;
+      }
+      // Saturated and black images: the extremes of the fixed-point range.
+      for (const int value : {0, 255}) {
+        const cv::Mat flat(37, 53, CV_8UC1, cv::Scalar(value));
+        cv::Mat expected, ours(flat.size(), CV_8UC1);
+        cv::GaussianBlur(flat, expected, cv::Size(fpg::kTaps, fpg::kTaps), sigma, sigma, cv::BORDER_REFLECT_101);
+        std::vector<uint16_t> buffer(fpg::bufferSize(flat.cols, flat.rows));
+        filter(flat, weights, &ours, buffer.data());
+        EXPECT_EQ(cv::countNonZero(ours != expected), 0) << name << ", flat " << value;
+      }
     }
   }
 }

@@ -7,6 +7,10 @@
 
 #include <vector>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
 #include <opencv2/imgproc.hpp>
 
 namespace visual_gyro {
@@ -24,20 +28,24 @@ static_assert(kHalfTaps + 1 == 7, "FeatureFrontEnd::Workspace::gaussian_weights 
 /// most 255 * 256), which recombine exactly: (A + 128 + (B >> 8)) >> 8 with A the high bytes' sum
 /// and B the low bytes'. Symmetric taps share a multiply. `buffer` holds
 /// cols (rows + 2) + kTaps - 1 values. Inlined into one function per instruction set.
-__attribute__((always_inline)) inline void filterRows(const cv::Mat& src, const Weights& w,
-                                                          cv::Mat* dst, uint16_t* buffer) {
+__attribute__((always_inline)) inline int reflect101(int i, int n) {
+  return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i);
+}
+
+/// The horizontal pass of every row into `horizontal` (cols x rows values, H = sum w p with 8
+/// fraction bits, at most 255 * 256), each value XORed with `bias` (0, or 0x8000 for the signed
+/// column pass). `padded` holds one source row with its reflected border.
+__attribute__((always_inline)) inline void horizontalPass(const cv::Mat& src, const Weights& w,
+                                                          uint16_t bias, uint16_t* horizontal,
+                                                          uint16_t* padded) {
   constexpr int kHalf = kHalfTaps;
   const int cols = src.cols, rows = src.rows;
-  auto reflect = [](int i, int n) { return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i); };
-
-  uint16_t* const horizontal = buffer;  // every row after the horizontal pass
-  uint16_t* const padded = horizontal + static_cast<size_t>(cols) * rows;  // one source row
   for (int y = 0; y < rows; ++y) {
     const uint8_t* in = src.ptr<uint8_t>(y);
     uint16_t* __restrict p = padded;
     for (int k = 0; k < kHalf; ++k) {
-      p[k] = in[reflect(k - kHalf, cols)];
-      p[cols + kHalf + k] = in[reflect(cols + k, cols)];
+      p[k] = in[reflect101(k - kHalf, cols)];
+      p[cols + kHalf + k] = in[reflect101(cols + k, cols)];
     }
     for (int x = 0; x < cols; ++x) p[kHalf + x] = in[x];
     uint16_t* __restrict h = horizontal + static_cast<size_t>(y) * cols;
@@ -46,9 +54,39 @@ __attribute__((always_inline)) inline void filterRows(const cv::Mat& src, const 
       for (int k = 1; k <= kHalf; ++k) {
         acc = static_cast<uint16_t>(acc + w[k] * static_cast<uint16_t>(p[x + kHalf - k] + p[x + kHalf + k]));
       }
-      h[x] = acc;
+      h[x] = static_cast<uint16_t>(acc ^ bias);
     }
   }
+}
+
+/// One output pixel of the column pass from unbiased horizontal values, exactly as OpenCV
+/// computes it: (sum w H + 2^15) >> 16 in 32 bits.
+__attribute__((always_inline)) inline uint8_t columnPixel(const uint16_t* const* taps, const Weights& w,
+                                                          uint16_t bias, int x) {
+  uint32_t sum = static_cast<uint32_t>(w[0]) * static_cast<uint16_t>(taps[kHalfTaps][x] ^ bias);
+  for (int k = 1; k <= kHalfTaps; ++k) {
+    sum += static_cast<uint32_t>(w[k]) * (static_cast<uint16_t>(taps[kHalfTaps - k][x] ^ bias) +
+                                          static_cast<uint16_t>(taps[kHalfTaps + k][x] ^ bias));
+  }
+  return static_cast<uint8_t>((sum + (1u << 15)) >> 16);
+}
+
+/// The same result as cv::GaussianBlur (kTaps x kTaps, BORDER_REFLECT_101) on an
+/// 8-bit image, bit for bit, given the weights of OpenCV's fixed-point kernel: OpenCV computes
+/// H = sum w p (8 fraction bits) per row, then (sum w H + 2^15) >> 16 per column, in 32-bit
+/// lanes. Here everything stays in 16-bit lanes (twice as many per instruction): H fits (at most
+/// 255 * 256), and the column sum is taken over H's high and low bytes separately (each sum at
+/// most 255 * 256), which recombine exactly: (A + 128 + (B >> 8)) >> 8 with A the high bytes' sum
+/// and B the low bytes'. Symmetric taps share a multiply. `buffer` holds
+/// cols (rows + 2) + kTaps - 1 values. Inlined into one function per instruction set.
+__attribute__((always_inline)) inline void filterRows(const cv::Mat& src, const Weights& w,
+                                                          cv::Mat* dst, uint16_t* buffer) {
+  constexpr int kHalf = kHalfTaps;
+  const int cols = src.cols, rows = src.rows;
+
+  uint16_t* const horizontal = buffer;  // every row after the horizontal pass
+  uint16_t* const padded = horizontal + static_cast<size_t>(cols) * rows;  // one source row
+  horizontalPass(src, w, 0, horizontal, padded);
   uint16_t* __restrict high = padded;      // the row's sums over the high bytes (A)
   uint16_t* __restrict low = padded + cols;  // and over the low bytes (B)
   for (int y = 0; y < rows; ++y) {
@@ -62,8 +100,8 @@ __attribute__((always_inline)) inline void filterRows(const cv::Mat& src, const 
       }
     }
     for (int k = 1; k <= kHalf; ++k) {
-      const uint16_t* __restrict a = horizontal + static_cast<size_t>(reflect(y - k, rows)) * cols;
-      const uint16_t* __restrict b = horizontal + static_cast<size_t>(reflect(y + k, rows)) * cols;
+      const uint16_t* __restrict a = horizontal + static_cast<size_t>(reflect101(y - k, rows)) * cols;
+      const uint16_t* __restrict b = horizontal + static_cast<size_t>(reflect101(y + k, rows)) * cols;
       const uint16_t weight = w[k];
       for (int x = 0; x < cols; ++x) {
         high[x] = static_cast<uint16_t>(high[x] + weight * static_cast<uint16_t>((a[x] >> 8) + (b[x] >> 8)));
@@ -82,10 +120,49 @@ void filterGeneric(const cv::Mat& src, const Weights& w, cv::Mat* dst, uint16_t*
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-// Twice the lanes per instruction; used only when the CPU reports AVX2 (runtime dispatch).
+// The column pass in 32-bit lanes with one multiply-add per pair of symmetric taps
+// (_mm256_madd_epi16 multiplies two 16-bit values by their weights and adds them): fewer
+// instructions than the byte-split sums of filterRows. madd is signed, so the horizontal values are
+// stored offset by -32768 (their top bit flipped); over the taps the offset sums to
+// -32768 * 256 = -2^23 and is added back before the rounding shift, so the result is exactly
+// OpenCV's (sum w H + 2^15) >> 16. Used only when the CPU reports AVX2 (runtime dispatch).
 __attribute__((target("avx2"))) void filterAvx2(const cv::Mat& src, const Weights& w,
                                                   cv::Mat* dst, uint16_t* buffer) {
-  filterRows(src, w, dst, buffer);
+  constexpr uint16_t kBias = 0x8000;
+  const int cols = src.cols, rows = src.rows;
+  uint16_t* const horizontal = buffer;
+  horizontalPass(src, w, kBias, horizontal, horizontal + static_cast<size_t>(cols) * rows);
+  __m256i weight_pairs[kHalfTaps + 1];
+  weight_pairs[0] = _mm256_set1_epi32(w[0]);  // (w0, 0): the centre tap, paired with itself
+  for (int k = 1; k <= kHalfTaps; ++k) weight_pairs[k] = _mm256_set1_epi32((w[k] << 16) | w[k]);
+  const __m256i rounding = _mm256_set1_epi32((1 << 23) + (1 << 15));
+  const uint16_t* taps[kTaps];
+  for (int y = 0; y < rows; ++y) {
+    for (int k = -kHalfTaps; k <= kHalfTaps; ++k) {
+      taps[kHalfTaps + k] = horizontal + static_cast<size_t>(reflect101(y + k, rows)) * cols;
+    }
+    uint8_t* out = dst->ptr<uint8_t>(y);
+    int x = 0;
+    for (; x + 16 <= cols; x += 16) {
+      const __m256i c = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(taps[kHalfTaps] + x));
+      __m256i lo = _mm256_madd_epi16(_mm256_unpacklo_epi16(c, c), weight_pairs[0]);
+      __m256i hi = _mm256_madd_epi16(_mm256_unpackhi_epi16(c, c), weight_pairs[0]);
+      for (int k = 1; k <= kHalfTaps; ++k) {
+        const __m256i a = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(taps[kHalfTaps - k] + x));
+        const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(taps[kHalfTaps + k] + x));
+        lo = _mm256_add_epi32(lo, _mm256_madd_epi16(_mm256_unpacklo_epi16(a, b), weight_pairs[k]));
+        hi = _mm256_add_epi32(hi, _mm256_madd_epi16(_mm256_unpackhi_epi16(a, b), weight_pairs[k]));
+      }
+      lo = _mm256_srli_epi32(_mm256_add_epi32(lo, rounding), 16);
+      hi = _mm256_srli_epi32(_mm256_add_epi32(hi, rounding), 16);
+      // The packs undo the unpacks' interleaving within each 128-bit lane; the permute joins the
+      // lanes' 8 bytes each.
+      const __m256i words = _mm256_packus_epi32(lo, hi);
+      const __m256i bytes = _mm256_permute4x64_epi64(_mm256_packus_epi16(words, words), 0x08);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), _mm256_castsi256_si128(bytes));
+    }
+    for (; x < cols; ++x) out[x] = columnPixel(taps, w, kBias, x);
+  }
 }
 #endif
 
@@ -99,6 +176,15 @@ Filter selectFilter() {
   if (__builtin_cpu_supports("avx2")) return filterAvx2;
 #endif
   return filterGeneric;
+}
+
+std::vector<std::pair<std::string, Filter>> availableFilters() {
+  std::vector<std::pair<std::string, Filter>> filters = {{"generic", filterGeneric}};
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx2")) filters.emplace_back("avx2", filterAvx2);
+#endif
+  return filters;
 }
 
 bool readWeights(double sigma, Filter filter, Weights* w) {

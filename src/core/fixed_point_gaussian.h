@@ -5,6 +5,9 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -22,6 +25,10 @@ using Filter = void (*)(const cv::Mat& src, const Weights& weights, cv::Mat* dst
 
 /// The fastest filter this CPU runs (AVX2 when it reports it, else the baseline instruction set).
 Filter selectFilter();
+
+/// Every filter this CPU runs, by name ("generic", and "avx2" when the CPU reports it), so tests can
+/// check each one and not only the one selectFilter() picks.
+std::vector<std::pair<std::string, Filter>> availableFilters();
 
 /// Scratch values a filter call needs for an image of `cols` x `rows`.
 size_t bufferSize(int cols, int rows);
