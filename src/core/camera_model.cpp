@@ -162,10 +162,13 @@ Eigen::Vector3d CameraModel::bearing(double u, double v) const {
   double ex, ey, jac[4];
   distortRadTan(distortion_, x, y, &ex, &ey, jac);
   double fx_res = ex - xd, fy_res = ey - yd;
-  double residual_norm = std::hypot(fx_res, fy_res);
+  // Squared norms throughout (they order and threshold alike, without a square root per step;
+  // std::hypot's overflow care is not needed at normalised-coordinate scale).
+  double residual_norm2 = fx_res * fx_res + fy_res * fy_res;
   // The residual lives in distorted coordinates; stopping well below the tolerance there keeps
   // the undistorted point within kUndistortTolerance as long as the Jacobian is not tiny.
-  for (int it = 0; it < kMaxUndistortIterations && residual_norm > 1e-3 * kUndistortTolerance;
+  constexpr double kResidualStop = 1e-3 * kUndistortTolerance;
+  for (int it = 0; it < kMaxUndistortIterations && residual_norm2 > kResidualStop * kResidualStop;
        ++it) {
     const double det = jac[0] * jac[3] - jac[1] * jac[2];
     if (det == 0.0 || !std::isfinite(det)) break;
@@ -177,20 +180,20 @@ Eigen::Vector3d CameraModel::bearing(double u, double v) const {
       const double nx = x - step_scale * dx, ny = y - step_scale * dy;
       double nex, ney, njac[4];
       distortRadTan(distortion_, nx, ny, &nex, &ney, njac);
-      const double nres = std::hypot(nex - xd, ney - yd);
-      if (nres < residual_norm) {
+      const double nres2 = (nex - xd) * (nex - xd) + (ney - yd) * (ney - yd);
+      if (nres2 < residual_norm2) {
         x = nx;
         y = ny;
         fx_res = nex - xd;
         fy_res = ney - yd;
-        residual_norm = nres;
+        residual_norm2 = nres2;
         std::copy(njac, njac + 4, jac);
         improved = true;
         break;
       }
       step_scale *= 0.5;
     }
-    if (!improved || std::hypot(step_scale * dx, step_scale * dy) < kUndistortTolerance) break;
+    if (!improved || step_scale * step_scale * (dx * dx + dy * dy) < kUndistortTolerance * kUndistortTolerance) break;
   }
   return Eigen::Vector3d(x, y, 1.0).normalized();
 }

@@ -677,8 +677,10 @@ void FeatureFrontEnd::predict(const CameraModel& camera, const Eigen::Matrix3d& 
   const double width = camera.width(), height = camera.height();
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector2d p = camera.project(to_current * previous_bearings[i]);
-    const double radius =
-        base + settings_.guided_radius_growth * std::hypot(p.x() - camera.cx(), p.y() - camera.cy());
+    // sqrt of the sum of squares, not std::hypot: no overflow is possible at pixel scale, and
+    // hypot's care for it cost as much as the projection.
+    const double dx = p.x() - camera.cx(), dy = p.y() - camera.cy();
+    const double radius = base + settings_.guided_radius_growth * std::sqrt(dx * dx + dy * dy);
     // Outside the image by more than the radius, behind the camera or not projectable: no search.
     const bool usable = p.allFinite() && p.x() > -radius && p.y() > -radius &&
                         p.x() < width - 1 + radius && p.y() < height - 1 + radius;
