@@ -234,6 +234,48 @@ TEST(FrontEnd, DescriptorBitsFollowDocumentedTest) {
   }
 }
 
+TEST(FrontEnd, DescriptorsEqualReferenceEverywhereInThePatchRange) {
+  // Every keypoint position describe() accepts, the extreme ones included (a patch touching the
+  // image's last row and column, where a kernel reading whole words must not read past the
+  // image), against a plain reference: bit i = smoothed(p1) < smoothed(p2). With smoothing (the
+  // front end's own buffer) and without (the caller's image, also as a view into a larger one).
+  const cv::Mat whole = syntheticTexture(131, 97, 21);
+  const cv::Mat view = whole(cv::Rect(7, 5, 101, 83));
+  const auto& pattern = briefPattern();
+  for (const double sigma : {2.0, 1.5, 0.0}) {  // 1.5: cv::GaussianBlur's path (another kernel size)
+    for (const cv::Mat& image : {whole, view}) {
+      FrontEndSettings settings;
+      settings.smoothing_sigma = sigma;
+      cv::Mat smoothed;  // a new buffer: blurring into a header of `image` would blur the image itself
+      if (sigma > 0.0) {
+        // A view is smoothed as an image of its own (its border reflected, not its parent's pixels).
+        cv::GaussianBlur(image, smoothed, cv::Size(13, 13), sigma, sigma, cv::BORDER_REFLECT_101 | cv::BORDER_ISOLATED);
+      } else {
+        smoothed = image;
+      }
+      std::vector<cv::Point2f> keypoints;
+      const int last_x = image.cols - 1 - kBriefHalfPatch, last_y = image.rows - 1 - kBriefHalfPatch;
+      for (int y = kBriefHalfPatch; y <= last_y; y += (y + 4 > last_y && y < last_y) ? 1 : 4)
+        for (int x = kBriefHalfPatch; x <= last_x; x += (x + 4 > last_x && x < last_x) ? 1 : 4)
+          keypoints.emplace_back(static_cast<float>(x), static_cast<float>(y));
+      keypoints.emplace_back(static_cast<float>(last_x), static_cast<float>(last_y));
+      const FrameFeatures features = FeatureFrontEnd(settings).describe(image, keypoints);
+      ASSERT_EQ(features.descriptors.size(), keypoints.size());
+      for (size_t k = 0; k < keypoints.size(); ++k) {
+        const int x = static_cast<int>(keypoints[k].x), y = static_cast<int>(keypoints[k].y);
+        BriefDescriptor expected{};
+        for (int i = 0; i < 256; ++i) {
+          const uint8_t a = smoothed.at<uint8_t>(y + pattern[i][1], x + pattern[i][0]);
+          const uint8_t b = smoothed.at<uint8_t>(y + pattern[i][3], x + pattern[i][2]);
+          if (a < b) expected[i / 64] |= uint64_t{1} << (i % 64);
+        }
+        ASSERT_EQ(features.descriptors[k], expected)
+            << "keypoint (" << x << ", " << y << "), sigma " << sigma << ", " << image.size();
+      }
+    }
+  }
+}
+
 TEST(FrontEnd, BadImagesThrow) {
   const FeatureFrontEnd front_end;
   EXPECT_THROW(front_end.detect(cv::Mat()), std::invalid_argument);
