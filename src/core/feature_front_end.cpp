@@ -125,6 +125,8 @@ void sortKeysDescending(std::vector<uint64_t>* keys, std::vector<uint64_t>* scra
 }
 
 constexpr int kNoMatch = -1;
+// Elements past the end of the guided grid's point and candidate arrays (one 8-lane vector).
+constexpr int kGuidedPad = 8;
 
 /// Brute-force search of every previous descriptor against every current one in a single pass:
 /// for each row the best and second-best distance, for each column the best row (for the
@@ -206,10 +208,27 @@ struct GuidedGrid {
   float cell_size;
 };
 
-__attribute__((always_inline)) inline void guidedKernel(
+/// Appends to `inside` (from *count on) the indices k in [begin, end) of the grid's points within
+/// sqrt(r2) of (px, py), in increasing order, one at a time without a branch (whether a candidate
+/// is inside is unpredictable).
+struct ScalarPositionTest {
+  __attribute__((always_inline)) void operator()(const cv::Point2f* points, int begin, int end, float px,
+                                                 float py, float r2, int* inside, int* count) const {
+    int n = *count;
+    for (int k = begin; k < end; ++k) {
+      const float dx = points[k].x - px, dy = points[k].y - py;
+      inside[n] = k;
+      n += !(dx * dx + dy * dy > r2);
+    }
+    *count = n;
+  }
+};
+
+template <class PositionTest>
+__attribute__((always_inline)) inline void guidedKernelBody(
     const BriefDescriptor* prev, int n_prev, const cv::Point2f* predicted, const float* radii,
     const GuidedGrid& grid, int* row_best, int* row_best_d, int* row_second_d, int* col_best,
-    int* col_best_d) {
+    int* col_best_d, PositionTest position_test) {
   for (int k = 0; k < grid.n; ++k) {
     col_best[k] = kNoMatch;
     col_best_d[k] = std::numeric_limits<int>::max();
@@ -230,12 +249,8 @@ __attribute__((always_inline)) inline void guidedKernel(
       // collected without a branch: whether a candidate is inside is unpredictable.
       int n_inside = 0;
       for (int cy = cy0; cy <= cy1 && cx0 <= cx1; ++cy) {
-        const int k_end = grid.start[cy * grid.cols + cx1 + 1];
-        for (int k = grid.start[cy * grid.cols + cx0]; k < k_end; ++k) {
-          const float dx = grid.points[k].x - px, dy = grid.points[k].y - py;
-          grid.inside[n_inside] = k;
-          n_inside += !(dx * dx + dy * dy > r2);
-        }
+        position_test(grid.points, grid.start[cy * grid.cols + cx0], grid.start[cy * grid.cols + cx1 + 1], px,
+                      py, r2, grid.inside, &n_inside);
       }
       const uint64_t a0 = prev[i][0], a1 = prev[i][1], a2 = prev[i][2], a3 = prev[i][3];
       for (int m = 0; m < n_inside; ++m) {
@@ -266,8 +281,8 @@ using GuidedFn = void (*)(const BriefDescriptor*, int, const cv::Point2f*, const
 void guidedGeneric(const BriefDescriptor* prev, int n_prev, const cv::Point2f* predicted,
                    const float* radii, const GuidedGrid& grid, int* row_best, int* row_best_d,
                    int* row_second_d, int* col_best, int* col_best_d) {
-  guidedKernel(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
-               col_best_d);
+  guidedKernelBody(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
+                   col_best_d, ScalarPositionTest());
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -277,8 +292,75 @@ __attribute__((target("popcnt"))) void guidedPopcnt(const BriefDescriptor* prev,
                                                     int* row_best, int* row_best_d,
                                                     int* row_second_d, int* col_best,
                                                     int* col_best_d) {
-  guidedKernel(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
-               col_best_d);
+  guidedKernelBody(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
+                   col_best_d, ScalarPositionTest());
+}
+
+/// For each 8-bit mask, the positions of its set bits in increasing order (the rest 0): the
+/// permutation that packs the selected lanes of an 8-lane vector to its front.
+struct PackTable {
+  alignas(32) int32_t lanes[256][8];
+  PackTable() {
+    for (int mask = 0; mask < 256; ++mask) {
+      int n = 0;
+      for (int lane = 0; lane < 8; ++lane)
+        if (mask & (1 << lane)) lanes[mask][n++] = lane;
+      for (; n < 8; ++n) lanes[mask][n] = 0;
+    }
+  }
+};
+const PackTable kPackTable;
+
+/// ScalarPositionTest eight candidates at a time: the points' x and y deinterleaved, the squared
+/// distances compared in one instruction, and the indices of those inside packed to the front of
+/// a vector stored at the end of the list (the next store overwrites the lanes beyond the count).
+/// Reads up to 7 points past `end` and writes up to 7 indices past the count: matchGuided pads
+/// both arrays by kGuidedPad. A function of its own (called once per grid row of a window):
+/// AVX2 code cannot be inlined into the kernel's shared body.
+__attribute__((target("avx2"))) void positionTestAvx2(const cv::Point2f* points, int begin, int end, float px,
+                                                    float py, float r2, int* inside, int* count) {
+  const __m256 vx = _mm256_set1_ps(px), vy = _mm256_set1_ps(py), vr2 = _mm256_set1_ps(r2);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i last = _mm256_set1_epi32(end - 1);
+  int n = *count;
+  for (int k = begin; k < end; k += 8) {
+    const float* xy = &points[k].x;
+    const __m256 a = _mm256_loadu_ps(xy), b = _mm256_loadu_ps(xy + 8);
+    // The shuffle gives x0 x1 x4 x5 | x2 x3 x6 x7; the 64-bit permute restores x0 .. x7.
+    const __m256 x = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(a, b, 0x88)), 0xD8));
+    const __m256 y = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(a, b, 0xDD)), 0xD8));
+    const __m256 dx = _mm256_sub_ps(x, vx), dy = _mm256_sub_ps(y, vy);
+    // The scalar test's rounding: each product rounded, then the sum (no fused multiply-add: the
+    // target does not enable FMA, so the compiler cannot contract these).
+    const __m256 d2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
+    const __m256i index = _mm256_add_epi32(_mm256_set1_epi32(k), lane);
+    // !(d2 > r2), as the scalar test (true for NaN too), and only lanes before `end`.
+    const __m256 outside = _mm256_cmp_ps(d2, vr2, _CMP_GT_OQ);
+    const int in_run = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(index, last))) ^ 0xFF;
+    const int mask = (_mm256_movemask_ps(outside) ^ 0xFF) & in_run;
+    const __m256i packed = _mm256_permutevar8x32_epi32(
+        index, _mm256_load_si256(reinterpret_cast<const __m256i*>(kPackTable.lanes[mask])));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(inside + n), packed);
+    n += __builtin_popcount(static_cast<unsigned>(mask));
+  }
+  *count = n;
+}
+
+struct Avx2PositionTest {
+  __attribute__((always_inline)) void operator()(const cv::Point2f* points, int begin, int end, float px, float py,
+                                                 float r2, int* inside, int* count) const {
+    if (begin < end) positionTestAvx2(points, begin, end, px, py, r2, inside, count);
+  }
+};
+
+// The popcnt kernel with the position test eight candidates at a time; used only when the CPU
+// reports AVX2 (which every CPU with it pairs with popcnt).
+__attribute__((target("avx2,popcnt"))) void guidedAvx2(const BriefDescriptor* prev, int n_prev,
+                                                       const cv::Point2f* predicted, const float* radii,
+                                                       const GuidedGrid& grid, int* row_best, int* row_best_d,
+                                                       int* row_second_d, int* col_best, int* col_best_d) {
+  guidedKernelBody(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
+                   col_best_d, Avx2PositionTest());
 }
 #endif
 
@@ -295,6 +377,7 @@ bool cpuHasPopcnt() {
 
 GuidedFn selectGuidedKernel() {
 #if defined(__x86_64__) && defined(__GNUC__)
+  if (cpuHasPopcnt() && __builtin_cpu_supports("avx2")) return guidedAvx2;
   if (cpuHasPopcnt()) return guidedPopcnt;
 #endif
   return guidedGeneric;
@@ -790,7 +873,9 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
   for (size_t c = 0; c < n_cells; ++c) w.grid_start[c + 1] += w.grid_start[c];
   w.grid_cursor.assign(w.grid_start.begin(), w.grid_start.end() - 1);
   w.grid_items.resize(n_cur);
-  w.grid_points.resize(n_cur);
+  // Padded: the vectorised position test reads up to kGuidedPad - 1 points past a run's end (they
+  // are masked out) and stores up to that many indices past the list's end.
+  w.grid_points.resize(n_cur + kGuidedPad);
   w.grid_descriptors.resize(n_cur);
   for (int j = 0; j < n_cur; ++j) {
     const int k = w.grid_cursor[cellOf(current.keypoints[j])]++;
@@ -801,7 +886,7 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
   grid.start = w.grid_start.data();
   grid.points = w.grid_points.data();
   grid.descriptors = w.grid_descriptors.data();
-  w.grid_inside.resize(n_cur);
+  w.grid_inside.resize(n_cur + kGuidedPad);
   grid.inside = w.grid_inside.data();
 
   static const GuidedFn kernel = selectGuidedKernel();
