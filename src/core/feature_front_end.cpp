@@ -1,6 +1,7 @@
 // FAST corners with grid bucketing, BRIEF-256 descriptors and brute-force Hamming matching.
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/random.h"
+#include "cpu_features.h"
 #include "fixed_point_gaussian.h"
 
 #include <algorithm>
@@ -364,29 +365,19 @@ __attribute__((target("avx2,popcnt"))) void guidedAvx2(const BriefDescriptor* pr
 }
 #endif
 
-bool cpuHasPopcnt() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("popcnt");
-#else
-  // aarch64 has a vector popcount (cnt) in its baseline, which the compiler uses for
-  // __builtin_popcountll without any flag.
-  return false;
-#endif
-}
-
+// aarch64 has a vector popcount (cnt) in its baseline, which the compiler uses for
+// __builtin_popcountll without any flag: the generic kernels are the fast ones there.
 GuidedFn selectGuidedKernel() {
 #if defined(__x86_64__) && defined(__GNUC__)
-  if (cpuHasPopcnt() && __builtin_cpu_supports("avx2")) return guidedAvx2;
-  if (cpuHasPopcnt()) return guidedPopcnt;
+  if (cpu_features::hasPopcnt() && cpu_features::hasAvx2()) return guidedAvx2;
+  if (cpu_features::hasPopcnt()) return guidedPopcnt;
 #endif
   return guidedGeneric;
 }
 
 KernelFn selectKernel() {
 #if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("popcnt")) return bruteForcePopcnt;
+  if (cpu_features::hasPopcnt()) return bruteForcePopcnt;
 #endif
   return bruteForceGeneric;
 }
@@ -455,8 +446,7 @@ __attribute__((target("avx2"))) BriefDescriptor gatherTestsAvx2(const uint8_t* c
 
 GatherTestsFn selectGatherTests() {
 #if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return gatherTestsAvx2;
+  if (cpu_features::hasAvx2()) return gatherTestsAvx2;
 #endif
   return nullptr;
 }

@@ -5,6 +5,8 @@
 // result is the same at every optimisation level.
 #include "fixed_point_gaussian.h"
 
+#include "cpu_features.h"
+
 #include <vector>
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -170,19 +172,13 @@ __attribute__((target("avx2"))) void filterAvx2(const cv::Mat& src, const Weight
 
 size_t bufferSize(int cols, int rows) { return static_cast<size_t>(cols) * (rows + 2) + kTaps - 1; }
 
-Filter selectFilter() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return filterAvx2;
-#endif
-  return filterGeneric;
-}
+Filter selectFilter() { return availableFilters().back().second; }
 
 std::vector<std::pair<std::string, Filter>> availableFilters() {
+  // Slowest first: selectFilter() takes the last.
   std::vector<std::pair<std::string, Filter>> filters = {{"generic", filterGeneric}};
 #if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) filters.emplace_back("avx2", filterAvx2);
+  if (cpu_features::hasAvx2()) filters.emplace_back("avx2", filterAvx2);
 #endif
   return filters;
 }
