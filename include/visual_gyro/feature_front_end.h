@@ -164,7 +164,9 @@ class FeatureFrontEnd {
  private:
   /// Reused buffers (see the class comment).
   struct Workspace {
-    std::vector<cv::KeyPoint> corners, cell_corners;
+    // FAST corners of one detection as (x, y, score) and the detector's working rows.
+    std::vector<cv::Point3i> corners;
+    std::vector<uint8_t> fast_scratch;
     // Detected corners as sort keys (strength above position; see candidateKey in the .cpp).
     std::vector<uint64_t> candidates, sort_scratch;
     // Grid cell of each pixel column and row, for the grid they were built for.

@@ -2,13 +2,13 @@
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/random.h"
 #include "cpu_features.h"
+#include "fast_detector.h"
 #include "fixed_point_gaussian.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -86,11 +86,11 @@ std::vector<std::array<int8_t, 4>> buildBriefPattern() {
 }
 
 /// Orders detected corners strongest first, ties broken by position (smaller y, then smaller x) so the
-/// selection does not depend on the sort: the FAST score (an integer from 0 to 255 on 8-bit
+/// selection does not depend on the sort: the FAST score (an integer from 0 to 254 on 8-bit
 /// images) above the complemented pixel coordinates, 40 bits in all. The position is read back
 /// from the key, so a corner is just its key.
-uint64_t candidateKey(float response, int x, int y) {
-  const uint64_t score = static_cast<uint64_t>(std::clamp(std::lround(response), 0L, 255L));
+uint64_t candidateKey(int fast_score, int x, int y) {
+  const uint64_t score = static_cast<uint64_t>(std::clamp(fast_score, 0, 255));
   const uint64_t yc = 0xFFFF - static_cast<uint64_t>(std::clamp(y, 0, 0xFFFF));
   const uint64_t xc = 0xFFFF - static_cast<uint64_t>(std::clamp(x, 0, 0xFFFF));
   return (score << 32) | (yc << 16) | xc;
@@ -549,14 +549,14 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   constexpr int kFastMargin = 4;
   const int margin = kDetectBorder - kFastMargin;
   const cv::Rect fast_area(margin, margin, width - 2 * margin, height - 2 * margin);
-  cv::FAST(gray(fast_area), w.corners, settings_.fast_threshold, /*nonmaxSuppression=*/true,
-           cv::FastFeatureDetector::TYPE_9_16);
+  // The package's FAST detector: cv::FAST's corners and scores on the same area, in less time.
+  w.corners.clear();
+  fast_detector::detect(gray, fast_area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
   w.candidates.clear();
   w.cell_count.assign(n_cells, 0);
-  for (const cv::KeyPoint& kp : w.corners) {
-    const int x = static_cast<int>(kp.pt.x) + margin, y = static_cast<int>(kp.pt.y) + margin;
-    if (!inside(x, y)) continue;
-    const uint64_t key = candidateKey(kp.response, x, y);
+  for (const cv::Point3i& corner : w.corners) {
+    if (!inside(corner.x, corner.y)) continue;
+    const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
     w.candidates.push_back(key);
     ++w.cell_count[cellOf(key)];
   }
@@ -596,12 +596,11 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
     for (int cell = 0; cell < n_cells; ++cell) {
       if (!w.redetect[cell]) continue;
       const cv::Rect area = searchArea(cell);
-      cv::FAST(gray(area), w.cell_corners, settings_.min_fast_threshold,
-               /*nonmaxSuppression=*/true, cv::FastFeatureDetector::TYPE_9_16);
-      for (const cv::KeyPoint& kp : w.cell_corners) {
-        const int x = static_cast<int>(kp.pt.x) + area.x, y = static_cast<int>(kp.pt.y) + area.y;
-        if (!inside(x, y)) continue;
-        const uint64_t key = candidateKey(kp.response, x, y);
+      w.corners.clear();
+      fast_detector::detect(gray, area, settings_.min_fast_threshold, &w.fast_scratch, &w.corners);
+      for (const cv::Point3i& corner : w.corners) {
+        if (!inside(corner.x, corner.y)) continue;
+        const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
         if (cellOf(key) == cell) w.candidates.push_back(key);
       }
     }
