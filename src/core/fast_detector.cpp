@@ -420,6 +420,8 @@ __attribute__((target("avx2"))) void detectAvx2(const cv::Mat& image, const cv::
 void detectWithOpenCv(const cv::Mat& image, const cv::Rect& area, int threshold,
                       std::vector<uint8_t>* /*scratch*/, std::vector<cv::Point3i>* corners) {
   checkInput(image, area);
+  // No pixel is 3 px from every edge (cv::FAST also rejects an empty image outright).
+  if (area.width < 7 || area.height < 7) return;
   thread_local std::vector<cv::KeyPoint> keypoints;  // reused: no allocation once grown
   cv::FAST(image(area), keypoints, std::clamp(threshold, 0, 255), /*nonmaxSuppression=*/true,
            cv::FastFeatureDetector::TYPE_9_16);
