@@ -4,12 +4,14 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <algorithm>
+#include <cstring>
 #include <string>
 #include <random>
 #include <set>
 
 #include "hypothesis_math.h"
 #include "hypothesis_voter.h"
+#include "triple_batch.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
 
@@ -166,6 +168,49 @@ TEST(TripleSolver, RejectsDegenerateTriples) {
     vg::hyp::Vec3f p[3] = {toF(a), toF(b), toF(c)}, q[3] = {toF(a), toF(b), toF(c2)};
     EXPECT_EQ(vg::hyp::solveTripleRotation(p, q, strict, &out), vg::hyp::kTripleInconsistent);
   }
+}
+
+TEST(TripleSolver, BatchSameAsScalarBitForBit) {
+  if (!vg::hyp::tripleBatchAvailable()) GTEST_SKIP() << "no batched triple solver on this CPU";
+  // Well-conditioned, noisy, repeated, thin, mirrored and non-finite triples side by side in the
+  // lanes, under every option the voter uses.
+  std::mt19937 rng(21);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> angle(-0.3, 0.3);
+  constexpr int kLanes = vg::hyp::kTripleBatch;
+  int solved = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    vg::hyp::TripleOptions opt = defaultTripleOptions(trial % 2 == 1);
+    if (trial % 3 == 0) opt.max_angle_change = static_cast<float>(0.3 * kDeg);
+    vg::hyp::Vec3f prev[kLanes][3], cur[kLanes][3];
+    for (int k = 0; k < kLanes; ++k) {
+      const Matrix3d R = vg::rotationFromYawPitchRoll(angle(rng), angle(rng), angle(rng));
+      const int kind = (trial + k) % 6;
+      for (int i = 0; i < 3; ++i) {
+        Vector3d c = randomBearingInView(rng);
+        if (kind == 1) c = randomBearingInView(rng, 0.01, 0.01);  // thin
+        Vector3d p = R * c;
+        if (kind == 2) p = (p + Vector3d(noise(rng), noise(rng), 0.0)).normalized();
+        if (kind == 3) p.x() = -p.x();  // mirrored
+        cur[k][i] = toF(c);
+        prev[k][i] = toF(p);
+      }
+      if (kind == 4) cur[k][2] = cur[k][0];  // repeated
+      if (kind == 5) prev[k][1] = vg::hyp::make3(NAN, 0.f, 1.f);
+    }
+    int32_t status[kLanes];
+    vg::hyp::Mat3f batch[kLanes];
+    vg::hyp::solveTripleBatch(prev, cur, opt, status, batch);
+    for (int k = 0; k < kLanes; ++k) {
+      vg::hyp::Mat3f one;
+      const int32_t expected = vg::hyp::solveTripleRotation(prev[k], cur[k], opt, &one);
+      ASSERT_EQ(status[k], expected) << "trial " << trial << " lane " << k;
+      if (expected != vg::hyp::kTripleOk) continue;
+      ++solved;
+      ASSERT_EQ(std::memcmp(one.m, batch[k].m, sizeof(one.m)), 0) << "trial " << trial << " lane " << k;
+    }
+  }
+  EXPECT_GT(solved, 4000 * kLanes / 4);
 }
 
 TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {

@@ -1,11 +1,13 @@
 // The reference CPU voter: the gold implementation the CUDA backend is checked against bin for bin.
 // Deliberately free of Eigen and OpenCV so that cuda/'s stand-alone build (nvcc + CMake only) can
 // compile it next to the kernels.
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 #include "hypothesis_voter.h"
+#include "triple_batch.h"
 
 namespace visual_gyro {
 
@@ -44,34 +46,56 @@ class CpuVoter : public HypothesisVoter {
     for (uint32_t& r : result->rejected) r = 0;
     result->device_ms = 0.0;
 
+    // The hypotheses are solved a batch at a time where the CPU can (the same rotations as one at a
+    // time), and binned in their order, so the per-cell sums add up in the same order either way.
+    const int batch = batched_ ? hyp::kTripleBatch : 1;
+    hyp::Vec3f prev[hyp::kTripleBatch][3], cur[hyp::kTripleBatch][3];
+    int32_t solved[hyp::kTripleBatch];
+    hyp::Mat3f rotations[hyp::kTripleBatch];
     hyp::HypothesisRecord record;
-    for (uint32_t h = 0; h < request.hypotheses; ++h) {
-      const int32_t status = hyp::evaluateHypothesis(request.prev, request.cur, request.matches,
-                                                     request.seed, h, request.triple, request.grid,
-                                                     &record);
-      if (request.keep_records) result->records[h] = record;
-      if (status != hyp::kTripleOk) {
-        ++result->rejected[status];
-        continue;
-      }
-      ++result->accepted;
-      ++result->histogram[record.cell];
-      float* sum = &result->cell_sums[static_cast<size_t>(record.cell) * 3];
-      sum[0] += record.value[0];
-      sum[1] += record.value[1];
-      sum[2] += record.value[2];
-    }
+    // The winner is kept up to date vote by vote (no pass over the cells): the fullest cell, the
+    // lowest index among equally full ones.
     result->winner = -1;
     int32_t best = 0;
-    for (int32_t c = 0; c < cells; ++c) {
-      if (result->histogram[c] > best) {
-        best = result->histogram[c];
-        result->winner = c;
+    for (uint32_t first = 0; first < request.hypotheses; first += batch) {
+      const int count = static_cast<int>(std::min<uint32_t>(batch, request.hypotheses - first));
+      for (int k = 0; k < count; ++k)
+        hyp::loadTriple(request.prev, request.cur, request.matches, request.seed, first + k, prev[k], cur[k]);
+      if (batched_) {
+        for (int k = count; k < batch; ++k) {  // unused lanes: copies of the first, results dropped
+          std::copy(prev[0], prev[0] + 3, prev[k]);
+          std::copy(cur[0], cur[0] + 3, cur[k]);
+        }
+        hyp::solveTripleBatch(prev, cur, request.triple, solved, rotations);
+      } else {
+        solved[0] = hyp::solveTripleRotation(prev[0], cur[0], request.triple, &rotations[0]);
+      }
+      for (int k = 0; k < count; ++k) {
+        const uint32_t h = first + k;
+        const int32_t status = hyp::binHypothesis(solved[k], rotations[k], request.grid, &record);
+        if (request.keep_records) result->records[h] = record;
+        if (status != hyp::kTripleOk) {
+          ++result->rejected[status];
+          continue;
+        }
+        ++result->accepted;
+        const int32_t votes = ++result->histogram[record.cell];
+        if (votes > best || (votes == best && record.cell < result->winner)) {
+          best = votes;
+          result->winner = record.cell;
+        }
+        float* sum = &result->cell_sums[static_cast<size_t>(record.cell) * 3];
+        sum[0] += record.value[0];
+        sum[1] += record.value[1];
+        sum[2] += record.value[2];
       }
     }
   }
 
   std::string name() const override { return "cpu"; }
+
+ private:
+  const bool batched_ = hyp::tripleBatchAvailable();
 };
 
 }  // namespace

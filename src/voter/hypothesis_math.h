@@ -322,17 +322,22 @@ struct HypothesisRecord {
   int32_t cell;    ///< histogram cell, -1 when rejected or outside the window
 };
 
-/// Draws, solves and bins hypothesis `h`: the whole per-thread work of the voting RANSAC.
-/// Returns the TripleStatus (kTripleOutsideWindow when solved but not in the grid).
-VG_HD int32_t evaluateHypothesis(const Vec3f* prev, const Vec3f* cur, uint32_t n, uint64_t seed,
-                                 uint32_t h, const TripleOptions& opt, const VoteGrid& grid,
-                                 HypothesisRecord* out) {
+/// The bearings of hypothesis `h`'s triple (drawTriple) in the previous (tp) and current (tc) frame.
+VG_HD void loadTriple(const Vec3f* prev, const Vec3f* cur, uint32_t n, uint64_t seed, uint32_t h,
+                      Vec3f tp[3], Vec3f tc[3]) {
   uint32_t idx[3];
   drawTriple(seed, h, n, idx);
-  const Vec3f tp[3] = {prev[idx[0]], prev[idx[1]], prev[idx[2]]};
-  const Vec3f tc[3] = {cur[idx[0]], cur[idx[1]], cur[idx[2]]};
-  Mat3f R;
-  int32_t status = solveTripleRotation(tp, tc, opt, &R);
+  tp[0] = prev[idx[0]];
+  tp[1] = prev[idx[1]];
+  tp[2] = prev[idx[2]];
+  tc[0] = cur[idx[0]];
+  tc[1] = cur[idx[1]];
+  tc[2] = cur[idx[2]];
+}
+
+/// Bins a hypothesis given what solveTripleRotation returned for it (`status`, and R when
+/// kTripleOk). Returns the TripleStatus (kTripleOutsideWindow when solved but not in the grid).
+VG_HD int32_t binHypothesis(int32_t status, const Mat3f& R, const VoteGrid& grid, HypothesisRecord* out) {
   out->cell = -1;
   out->value[0] = out->value[1] = out->value[2] = 0.f;
   if (status != kTripleOk) return status;
@@ -342,6 +347,18 @@ VG_HD int32_t evaluateHypothesis(const Vec3f* prev, const Vec3f* cur, uint32_t n
   out->value[1] = voted.y;
   out->value[2] = voted.z;
   return out->cell >= 0 ? kTripleOk : kTripleOutsideWindow;
+}
+
+/// Draws, solves and bins hypothesis `h`: the whole per-thread work of the voting RANSAC.
+/// Returns the TripleStatus (kTripleOutsideWindow when solved but not in the grid).
+VG_HD int32_t evaluateHypothesis(const Vec3f* prev, const Vec3f* cur, uint32_t n, uint64_t seed,
+                                 uint32_t h, const TripleOptions& opt, const VoteGrid& grid,
+                                 HypothesisRecord* out) {
+  Vec3f tp[3], tc[3];
+  loadTriple(prev, cur, n, seed, h, tp, tc);
+  Mat3f R;
+  const int32_t status = solveTripleRotation(tp, tc, opt, &R);
+  return binHypothesis(status, R, grid, out);
 }
 
 }  // namespace hyp
