@@ -46,30 +46,23 @@ class CpuVoter : public HypothesisVoter {
     for (uint32_t& r : result->rejected) r = 0;
     result->device_ms = 0.0;
 
-    // The hypotheses are solved a batch at a time where the CPU can (the same rotations as one at a
-    // time), and binned in their order, so the per-cell sums add up in the same order either way.
-    const int batch = batched_ ? hyp::kTripleBatch : 1;
-    hyp::Vec3f prev[hyp::kTripleBatch][3], cur[hyp::kTripleBatch][3];
-    int32_t solved[hyp::kTripleBatch];
-    hyp::Mat3f rotations[hyp::kTripleBatch];
+    // The hypotheses are drawn and solved a chunk at a time (in SIMD lanes where the CPU can, the
+    // same rotations as one at a time) and binned in their order, so the per-cell sums add up in
+    // the same order either way.
+    constexpr int kChunk = 128;
+    hyp::Vec3f prev[kChunk][3], cur[kChunk][3];
+    int32_t solved[kChunk];
+    hyp::Mat3f rotations[kChunk];
     hyp::HypothesisRecord record;
     // The winner is kept up to date vote by vote (no pass over the cells): the fullest cell, the
     // lowest index among equally full ones.
     result->winner = -1;
     int32_t best = 0;
-    for (uint32_t first = 0; first < request.hypotheses; first += batch) {
-      const int count = static_cast<int>(std::min<uint32_t>(batch, request.hypotheses - first));
+    for (uint32_t first = 0; first < request.hypotheses; first += kChunk) {
+      const int count = static_cast<int>(std::min<uint32_t>(kChunk, request.hypotheses - first));
       for (int k = 0; k < count; ++k)
         hyp::loadTriple(request.prev, request.cur, request.matches, request.seed, first + k, prev[k], cur[k]);
-      if (batched_) {
-        for (int k = count; k < batch; ++k) {  // unused lanes: copies of the first, results dropped
-          std::copy(prev[0], prev[0] + 3, prev[k]);
-          std::copy(cur[0], cur[0] + 3, cur[k]);
-        }
-        hyp::solveTripleBatch(prev, cur, request.triple, solved, rotations);
-      } else {
-        solved[0] = hyp::solveTripleRotation(prev[0], cur[0], request.triple, &rotations[0]);
-      }
+      hyp::solveTriples(prev, cur, count, request.triple, solved, rotations);
       for (int k = 0; k < count; ++k) {
         const uint32_t h = first + k;
         const int32_t status = hyp::binHypothesis(solved[k], rotations[k], request.grid, &record);
@@ -93,9 +86,6 @@ class CpuVoter : public HypothesisVoter {
   }
 
   std::string name() const override { return "cpu"; }
-
- private:
-  const bool batched_ = hyp::tripleBatchAvailable();
 };
 
 }  // namespace

@@ -102,27 +102,8 @@ VG_AVX void swapTriplets(F8 swap, F8* sa, V8* ha, V8* va, F8* sb, V8* hb, V8* vb
   *vb = select(swap, v, *vb);
 }
 
-__attribute__((target("avx"))) void solveAvx(const Vec3f prev[kTripleBatch][3], const Vec3f cur[kTripleBatch][3],
-                                              const TripleOptions& opt, int32_t status[kTripleBatch],
-                                              Mat3f R[kTripleBatch]) {
-  const V8 pr[3] = {load(prev, 0), load(prev, 1), load(prev, 2)};
-  const V8 cu[3] = {load(cur, 0), load(cur, 1), load(cur, 2)};
-  F8 open = F8{_mm256_castsi256_ps(_mm256_set1_epi32(-1))};
-  const F8 zero = broadcast(0.f), one = broadcast(1.f);
-
-  const V8 dp01 = pr[1] - pr[0], dp02 = pr[2] - pr[0], dp12 = pr[2] - pr[1];
-  const V8 dc01 = cu[1] - cu[0], dc02 = cu[2] - cu[0], dc12 = cu[2] - cu[1];
-  const F8 lp01 = norm(dp01), lp02 = norm(dp02), lp12 = norm(dp12);
-  const F8 lc01 = norm(dc01), lc02 = norm(dc02), lc12 = norm(dc12);
-  const F8 shortest = fmin8(fmin8(lp01, lp02), fmin8(lp12, fmin8(lc01, fmin8(lc02, lc12))));
-  if (!reject(notGreaterEqual(shortest, broadcast(opt.min_separation)), kTripleRepeated, &open, status)) return;
-  const F8 area = broadcast(0.5f) * fmin8(norm(cross(dp01, dp02)), norm(cross(dc01, dc02)));
-  if (!reject(notGreaterEqual(area, broadcast(opt.min_triangle_area)), kTripleCollinear, &open, status)) return;
-  if (opt.max_angle_change > 0.f) {
-    const F8 change = fmax8(abs8(lp01 - lc01), fmax8(abs8(lp02 - lc02), abs8(lp12 - lc12)));
-    if (!reject(greater(change, broadcast(opt.max_angle_change)), kTripleInconsistent, &open, status)) return;
-  }
-
+// Arun's H = sum p q^T of the lanes' triples (p = current, q = previous bearings), by columns.
+VG_AVX void crossCovariance(const V8 pr[3], const V8 cu[3], const TripleOptions& opt, V8 h[3]) {
   V8 p[3] = {cu[0], cu[1], cu[2]};  // source points (rotated by R)
   V8 q[3] = {pr[0], pr[1], pr[2]};  // target points
   if (opt.centroid_subtraction) {
@@ -134,15 +115,53 @@ __attribute__((target("avx"))) void solveAvx(const Vec3f prev[kTripleBatch][3], 
       q[i] = q[i] - cq;
     }
   }
-  V8 h[3];
   h[0] = V8{p[0].x * q[0].x + p[1].x * q[1].x + p[2].x * q[2].x, p[0].y * q[0].x + p[1].y * q[1].x + p[2].y * q[2].x,
             p[0].z * q[0].x + p[1].z * q[1].x + p[2].z * q[2].x};
   h[1] = V8{p[0].x * q[0].y + p[1].x * q[1].y + p[2].x * q[2].y, p[0].y * q[0].y + p[1].y * q[1].y + p[2].y * q[2].y,
             p[0].z * q[0].y + p[1].z * q[1].y + p[2].z * q[2].y};
   h[2] = V8{p[0].x * q[0].z + p[1].x * q[1].z + p[2].x * q[2].z, p[0].y * q[0].z + p[1].y * q[1].z + p[2].y * q[2].z,
             p[0].z * q[0].z + p[1].z * q[1].z + p[2].z * q[2].z};
-  const F8 detH = dot(h[0], cross(h[1], h[2]));
-  if (!opt.centroid_subtraction && !reject(notGreater(detH, zero), kTripleReflection, &open, status)) return;
+}
+
+// The tests solveTripleRotation makes before its SVD, for the lanes' triples: the status of each
+// rejected lane is written, and the mask of the lanes that pass (bit k: lane k) returned.
+__attribute__((target("avx"))) int screenAvx(const Vec3f prev[kTripleBatch][3], const Vec3f cur[kTripleBatch][3],
+                                              const TripleOptions& opt, int32_t status[kTripleBatch]) {
+  const V8 pr[3] = {load(prev, 0), load(prev, 1), load(prev, 2)};
+  const V8 cu[3] = {load(cur, 0), load(cur, 1), load(cur, 2)};
+  F8 open = F8{_mm256_castsi256_ps(_mm256_set1_epi32(-1))};
+  const V8 dp01 = pr[1] - pr[0], dp02 = pr[2] - pr[0], dp12 = pr[2] - pr[1];
+  const V8 dc01 = cu[1] - cu[0], dc02 = cu[2] - cu[0], dc12 = cu[2] - cu[1];
+  const F8 lp01 = norm(dp01), lp02 = norm(dp02), lp12 = norm(dp12);
+  const F8 lc01 = norm(dc01), lc02 = norm(dc02), lc12 = norm(dc12);
+  const F8 shortest = fmin8(fmin8(lp01, lp02), fmin8(lp12, fmin8(lc01, fmin8(lc02, lc12))));
+  if (!reject(notGreaterEqual(shortest, broadcast(opt.min_separation)), kTripleRepeated, &open, status)) return 0;
+  const F8 area = broadcast(0.5f) * fmin8(norm(cross(dp01, dp02)), norm(cross(dc01, dc02)));
+  if (!reject(notGreaterEqual(area, broadcast(opt.min_triangle_area)), kTripleCollinear, &open, status)) return 0;
+  if (opt.max_angle_change > 0.f) {
+    const F8 change = fmax8(abs8(lp01 - lc01), fmax8(abs8(lp02 - lc02), abs8(lp12 - lc12)));
+    if (!reject(greater(change, broadcast(opt.max_angle_change)), kTripleInconsistent, &open, status)) return 0;
+  }
+  if (!opt.centroid_subtraction) {
+    V8 h[3];
+    crossCovariance(pr, cu, opt, h);
+    const F8 detH = dot(h[0], cross(h[1], h[2]));
+    if (!reject(notGreater(detH, broadcast(0.f)), kTripleReflection, &open, status)) return 0;
+  }
+  return bits(open);
+}
+
+// The rest of solveTripleRotation for lanes that passed screenAvx: one-sided Jacobi, the ordering
+// of the singular values, the rank test and R.
+__attribute__((target("avx"))) void solveScreenedAvx(const Vec3f prev[kTripleBatch][3],
+                                                      const Vec3f cur[kTripleBatch][3], const TripleOptions& opt,
+                                                      int32_t status[kTripleBatch], Mat3f R[kTripleBatch]) {
+  const V8 pr[3] = {load(prev, 0), load(prev, 1), load(prev, 2)};
+  const V8 cu[3] = {load(cur, 0), load(cur, 1), load(cur, 2)};
+  F8 open = F8{_mm256_castsi256_ps(_mm256_set1_epi32(-1))};
+  const F8 zero = broadcast(0.f), one = broadcast(1.f);
+  V8 h[3];
+  crossCovariance(pr, cu, opt, h);
 
   V8 v[3] = {V8{one, zero, zero}, V8{zero, one, zero}, V8{zero, zero, one}};
   const F8 tiny = broadcast(1e-7f), two = broadcast(2.f), minus_one = broadcast(-1.f);
@@ -155,7 +174,7 @@ __attribute__((target("avx"))) void solveAvx(const Vec3f prev[kTripleBatch][3], 
       const F8 beta = dot(h[j], h[j]);
       const F8 gamma = dot(h[i], h[j]);
       const F8 skip = lessEqual(abs8(gamma), tiny * sqrt8(alpha * beta)) | equal(gamma, zero);
-      if (bits(andNot(skip, open)) == 0) continue;
+      if (bits(skip) == 0xFF) continue;
       rotated = rotated | andNot(skip, open);
       const F8 zeta = (beta - alpha) / (two * gamma);
       const F8 t = select(greaterEqual(zeta, zero), one, minus_one) / (abs8(zeta) + sqrt8(one + zeta * zeta));
@@ -198,27 +217,80 @@ __attribute__((target("avx"))) void solveAvx(const Vec3f prev[kTripleBatch][3], 
   }
 }
 
+// Copies triples index[0..count) of the arrays into the lanes (count <= kTripleBatch), the
+// remaining lanes with copies of the first, whose results are dropped.
+void fillLanes(const Vec3f (*prev)[3], const Vec3f (*cur)[3], const int* index, int count,
+               Vec3f lane_prev[kTripleBatch][3], Vec3f lane_cur[kTripleBatch][3]) {
+  for (int k = 0; k < kTripleBatch; ++k) {
+    const int from = index[k < count ? k : 0];
+    for (int i = 0; i < 3; ++i) {
+      lane_prev[k][i] = prev[from][i];
+      lane_cur[k][i] = cur[from][i];
+    }
+  }
+}
+
 #undef VG_AVX
 
 }  // namespace
 
 bool tripleBatchAvailable() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx");
+  static const bool available = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx") != 0;
+  }();
+  return available;
 }
 
-void solveTripleBatch(const Vec3f prev[kTripleBatch][3], const Vec3f cur[kTripleBatch][3], const TripleOptions& opt,
-                      int32_t status[kTripleBatch], Mat3f R[kTripleBatch]) {
-  solveAvx(prev, cur, opt, status, R);
+void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
+                  int32_t* status, Mat3f* R) {
+  if (!tripleBatchAvailable()) {
+    for (int k = 0; k < count; ++k) status[k] = solveTripleRotation(prev[k], cur[k], opt, &R[k]);
+    return;
+  }
+  // Most triples of a narrow vote fail the cheap tests; the SVD lanes are filled with those that
+  // pass, so that no lane of the expensive part is wasted on a rejected triple.
+  Vec3f screen_prev[kTripleBatch][3], screen_cur[kTripleBatch][3];
+  int32_t screen_status[kTripleBatch];
+  Vec3f solve_prev[kTripleBatch][3], solve_cur[kTripleBatch][3];
+  int32_t solve_status[kTripleBatch];
+  Mat3f solve_R[kTripleBatch];
+  int index[kTripleBatch];
+  int passed[kTripleBatch];
+  int queued = 0;
+  auto solveQueued = [&]() {
+    fillLanes(prev, cur, passed, queued, solve_prev, solve_cur);
+    solveScreenedAvx(solve_prev, solve_cur, opt, solve_status, solve_R);
+    for (int k = 0; k < queued; ++k) {
+      status[passed[k]] = solve_status[k];
+      if (solve_status[k] == kTripleOk) R[passed[k]] = solve_R[k];
+    }
+    queued = 0;
+  };
+  for (int first = 0; first < count; first += kTripleBatch) {
+    const int lanes = count - first < kTripleBatch ? count - first : kTripleBatch;
+    for (int k = 0; k < lanes; ++k) index[k] = first + k;
+    fillLanes(prev, cur, index, lanes, screen_prev, screen_cur);
+    const int pass = screenAvx(screen_prev, screen_cur, opt, screen_status);
+    for (int k = 0; k < lanes; ++k) {
+      if (!(pass & (1 << k))) {
+        status[first + k] = screen_status[k];
+        continue;
+      }
+      passed[queued++] = first + k;
+      if (queued == kTripleBatch) solveQueued();
+    }
+  }
+  if (queued > 0) solveQueued();
 }
 
-#else  // no x86-64 SIMD: callers solve one triple at a time
+#else  // no x86-64 SIMD
 
 bool tripleBatchAvailable() { return false; }
 
-void solveTripleBatch(const Vec3f prev[kTripleBatch][3], const Vec3f cur[kTripleBatch][3], const TripleOptions& opt,
-                      int32_t status[kTripleBatch], Mat3f R[kTripleBatch]) {
-  for (int k = 0; k < kTripleBatch; ++k) status[k] = solveTripleRotation(prev[k], cur[k], opt, &R[k]);
+void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
+                  int32_t* status, Mat3f* R) {
+  for (int k = 0; k < count; ++k) status[k] = solveTripleRotation(prev[k], cur[k], opt, &R[k]);
 }
 
 #endif

@@ -1,4 +1,4 @@
-// hyp::solveTripleRotation for several triples at once in SIMD lanes (CPU only), bit for bit the
+// hyp::solveTripleRotation for many triples at once, in SIMD lanes (CPU only), bit for bit the
 // same statuses and rotations as the scalar function the CUDA kernels share.
 // Eigen- and OpenCV-free like the rest of src/voter.
 #pragma once
@@ -10,19 +10,19 @@
 namespace visual_gyro {
 namespace hyp {
 
-/// Triples solved by one solveTripleBatch call.
+/// Triples the batched solver works on at once (SIMD lanes).
 constexpr int kTripleBatch = 8;
 
-/// True when this CPU runs solveTripleBatch (x86-64 with AVX); otherwise solve one triple at a time
-/// with solveTripleRotation.
+/// True when this CPU solves triples in SIMD lanes (x86-64 with AVX); without them solveTriples
+/// solves one triple at a time.
 bool tripleBatchAvailable();
 
-/// solveTripleRotation for kTripleBatch triples: prev[k] and cur[k] are triple k, status[k] and R[k]
-/// its results (R[k] set only when status[k] is kTripleOk). Every lane performs exactly the scalar
-/// function's floating-point operations, so the results are identical to it. Requires
-/// tripleBatchAvailable().
-void solveTripleBatch(const Vec3f prev[kTripleBatch][3], const Vec3f cur[kTripleBatch][3],
-                      const TripleOptions& opt, int32_t status[kTripleBatch], Mat3f R[kTripleBatch]);
+/// solveTripleRotation for `count` triples, in SIMD lanes where the CPU can: prev[k] and cur[k] are
+/// triple k, status[k] and R[k] its results (R[k] set only when status[k] is kTripleOk). Every
+/// triple goes through exactly the scalar function's floating-point operations, so the results
+/// are identical to it.
+void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
+                  int32_t* status, Mat3f* R);
 
 }  // namespace hyp
 }  // namespace visual_gyro
