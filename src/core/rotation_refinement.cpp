@@ -42,56 +42,166 @@ inline bool withinEpipolarGate(double algebraic, double tp, double trc, double g
   return algebraic * algebraic < gate * gate * sampsonNorm2(tp, trc);
 }
 
+// Whether match i's bearings are in the same hemisphere at the last rotateAll's rotation.
+inline bool usable(const FrameMatches::Scratch& s, size_t i) { return s.facing[i] > 0.0; }
+
 double huberWeight(double r, double k) {
   const double a = std::abs(r);
   return a <= k ? 1.0 : k / a;
 }
 
-// R b_cur, b_prev x R b_cur and the hemisphere test of every match into the scratch arrays: the
-// one pass per rotation that the counting and gating loops then read. Matches whose bearings
-// point into opposite half-spaces after the rotation cannot be one point.
-void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
-  const size_t n = m.size();
-  FrameMatches::Scratch& s = m.scratch;
-  for (std::vector<double>* v : {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz}) v->resize(n);
-  s.usable.resize(n);
+// rotateAll's loop. Its arrays are function parameters so that the compiler may take them as not
+// overlapping (restrict) and vectorise the loop.
+void rotateMatches(size_t n, const Eigen::Matrix3d& R, const double* __restrict px, const double* __restrict py,
+                   const double* __restrict pz, const double* __restrict cx, const double* __restrict cy,
+                   const double* __restrict cz, double* __restrict out_rx, double* __restrict out_ry,
+                   double* __restrict out_rz, double* __restrict out_nx, double* __restrict out_ny,
+                   double* __restrict out_nz, double* __restrict facing) {
+  const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
+  const double r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
+  const double r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
   for (size_t i = 0; i < n; ++i) {
-    const double rx = R(0, 0) * m.cx[i] + R(0, 1) * m.cy[i] + R(0, 2) * m.cz[i];
-    const double ry = R(1, 0) * m.cx[i] + R(1, 1) * m.cy[i] + R(1, 2) * m.cz[i];
-    const double rz = R(2, 0) * m.cx[i] + R(2, 1) * m.cy[i] + R(2, 2) * m.cz[i];
-    s.rx[i] = rx;
-    s.ry[i] = ry;
-    s.rz[i] = rz;
-    s.nx[i] = m.py[i] * rz - m.pz[i] * ry;
-    s.ny[i] = m.pz[i] * rx - m.px[i] * rz;
-    s.nz[i] = m.px[i] * ry - m.py[i] * rx;
-    s.usable[i] = m.px[i] * rx + m.py[i] * ry + m.pz[i] * rz > 0.0;
+    const double rx = r00 * cx[i] + r01 * cy[i] + r02 * cz[i];
+    const double ry = r10 * cx[i] + r11 * cy[i] + r12 * cz[i];
+    const double rz = r20 * cx[i] + r21 * cy[i] + r22 * cz[i];
+    out_rx[i] = rx;
+    out_ry[i] = ry;
+    out_rz[i] = rz;
+    out_nx[i] = py[i] * rz - pz[i] * ry;
+    out_ny[i] = pz[i] * rx - px[i] * rz;
+    out_nz[i] = px[i] * ry - py[i] * rx;
+    facing[i] = px[i] * rx + py[i] * ry + pz[i] * rz;
   }
 }
 
-// Epipolar inliers of translation t among every stride-th match, from the scratch of rotateAll.
-// Only a count above `beat` is of use to the caller: the count stops, returning something no
-// larger, as soon as the matches left cannot lift it above `beat` (most sampled translations are
-// wrong and are given up after a fraction of the matches). Checked once per block, so that the
-// loop within a block has no early exit.
-int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, size_t stride, int beat) {
-  constexpr size_t kBlock = 64;
-  const FrameMatches::Scratch& s = m.scratch;
-  const double tx = t.x(), ty = t.y(), tz = t.z();
+// R b_cur, b_prev x R b_cur and the hemisphere test of every match into the scratch arrays: the
+// one pass per rotation that the counting and gating loops then read. Matches whose bearings
+// point into opposite half-spaces after the rotation cannot be one point. A rotation equal to the
+// last one's (a refinement starting where a verification ended, a round whose steps were all
+// rejected) finds its results already there.
+void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
+  FrameMatches::Scratch& s = m.scratch;
+  if (s.rotated && s.rotation == R) return;
   const size_t n = m.size();
-  const size_t samples = (n + stride - 1) / stride;
+  for (std::vector<double>* v : {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz}) v->resize(n);
+  s.facing.resize(n);
+  rotateMatches(n, R, m.px.data(), m.py.data(), m.pz.data(), m.cx.data(), m.cy.data(), m.cz.data(), s.rx.data(),
+                s.ry.data(), s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data());
+  s.rotation = R;
+  s.rotated = true;
+  s.counting = false;
+}
+
+// The usable matches of the last rotateAll in the counting arrays (even indices, then odd ones).
+// The translation counts of a verification (up to some seventy per rotation) then read
+// contiguous arrays with no hemisphere test, and the sampled counts only the first group.
+void prepareCounting(FrameMatches& m) {
+  FrameMatches::Scratch& s = m.scratch;
+  if (s.counting) return;
+  const size_t n = m.size();
+  for (std::vector<double>* v : {&s.qnx, &s.qny, &s.qnz, &s.qpx, &s.qpy, &s.qpz, &s.qrx, &s.qry, &s.qrz})
+    v->resize(n);
+  s.odd_start = (n + 1) / 2;
+  size_t next[2] = {0, s.odd_start};
+  for (size_t i = 0; i < n; ++i) {
+    if (!usable(s, i)) continue;
+    const size_t k = next[i & 1]++;
+    s.qnx[k] = s.nx[i];
+    s.qny[k] = s.ny[i];
+    s.qnz[k] = s.nz[i];
+    s.qpx[k] = m.px[i];
+    s.qpy[k] = m.py[i];
+    s.qpz[k] = m.pz[i];
+    s.qrx[k] = s.rx[i];
+    s.qry[k] = s.ry[i];
+    s.qrz[k] = s.rz[i];
+  }
+  s.even_count = next[0];
+  s.odd_count = next[1] - s.odd_start;
+  s.counting = true;
+}
+
+// Epipolar inliers of translation t among the counting arrays' matches [begin, end): a loop
+// without branches, vectorised by the compiler. The test is withinEpipolarGate's, operation for
+// operation (gate2 = gate * gate).
+inline __attribute__((always_inline)) int countEpipolarRange(const FrameMatches::Scratch& s, size_t begin,
+                                                             size_t end, double tx, double ty, double tz,
+                                                             double gate2) {
+  const double* __restrict nx = s.qnx.data();
+  const double* __restrict ny = s.qny.data();
+  const double* __restrict nz = s.qnz.data();
+  const double* __restrict px = s.qpx.data();
+  const double* __restrict py = s.qpy.data();
+  const double* __restrict pz = s.qpz.data();
+  const double* __restrict rx = s.qrx.data();
+  const double* __restrict ry = s.qry.data();
+  const double* __restrict rz = s.qrz.data();
   int count = 0;
-  for (size_t block = 0; block < samples; block += kBlock) {
-    if (count + static_cast<int>(samples - block) <= beat) break;
-    const size_t end = std::min(samples, block + kBlock) * stride;
-    for (size_t i = block * stride; i < end; i += stride) {
-      const double algebraic = tx * s.nx[i] + ty * s.ny[i] + tz * s.nz[i];
-      const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
-      const double trc = tx * s.rx[i] + ty * s.ry[i] + tz * s.rz[i];
-      count += s.usable[i] & withinEpipolarGate(algebraic, tp, trc, gate);
+  for (size_t i = begin; i < end; ++i) {
+    const double algebraic = tx * nx[i] + ty * ny[i] + tz * nz[i];
+    const double tp = tx * px[i] + ty * py[i] + tz * pz[i];
+    const double trc = tx * rx[i] + ty * ry[i] + tz * rz[i];
+    count += algebraic * algebraic < gate2 * sampsonNorm2(tp, trc);
+  }
+  return count;
+}
+
+// Epipolar inliers of translation t among the counting arrays' matches: the first group only when
+// `sampled` (every other match), else both. Only a count above `beat` is of use to the caller: the
+// count stops, returning something no larger, as soon as the matches left cannot lift it above
+// `beat` (most sampled translations are wrong and are given up after a fraction of the matches).
+// Checked once per block, so that the loop within a block has no early exit.
+inline __attribute__((always_inline)) int countEpipolarInliersIn(const FrameMatches::Scratch& s,
+                                                                 const Eigen::Vector3d& t, double gate,
+                                                                 bool sampled, int beat) {
+  constexpr size_t kBlock = 64;
+  const double tx = t.x(), ty = t.y(), tz = t.z();
+  const double gate2 = gate * gate;
+  const size_t groups[2][2] = {{0, s.even_count}, {s.odd_start, s.odd_start + s.odd_count}};
+  size_t left = s.even_count + (sampled ? 0 : s.odd_count);
+  int count = 0;
+  for (int g = 0; g < (sampled ? 1 : 2); ++g) {
+    for (size_t block = groups[g][0]; block < groups[g][1]; block += kBlock) {
+      if (count + static_cast<int>(left) <= beat) return count;
+      const size_t end = std::min(groups[g][1], block + kBlock);
+      count += countEpipolarRange(s, block, end, tx, ty, tz, gate2);
+      left -= end - block;
     }
   }
   return count;
+}
+
+int countEpipolarInliersGeneric(const FrameMatches::Scratch& s, const Eigen::Vector3d& t, double gate, bool sampled,
+                                int beat) {
+  return countEpipolarInliersIn(s, t, gate, sampled, beat);
+}
+
+using CountEpipolarInliers = int (*)(const FrameMatches::Scratch&, const Eigen::Vector3d&, double, bool, int);
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Four matches per instruction; used only when the CPU reports AVX2 (runtime dispatch). Without
+// FMA, as everywhere in the build: the same operations, so the same counts.
+__attribute__((target("avx2"))) int countEpipolarInliersAvx2(const FrameMatches::Scratch& s,
+                                                             const Eigen::Vector3d& t, double gate, bool sampled,
+                                                             int beat) {
+  return countEpipolarInliersIn(s, t, gate, sampled, beat);
+}
+#endif
+
+CountEpipolarInliers selectCountEpipolarInliers() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx2")) return countEpipolarInliersAvx2;
+#endif
+  return countEpipolarInliersGeneric;
+}
+
+const CountEpipolarInliers countEpipolarInliersImpl = selectCountEpipolarInliers();
+
+// Epipolar inliers of translation t at the rotation of the last prepareCounting (see
+// countEpipolarInliersIn).
+int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, bool sampled, int beat) {
+  return countEpipolarInliersImpl(m.scratch, t, gate, sampled, beat);
 }
 
 // 3.5 robust sigmas (1.4826 MAD) of the residuals below the threshold, clamped to
@@ -104,7 +214,7 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
   squared.clear();
   const double threshold2 = threshold * threshold;
   for (size_t i = 0; i < m.size(); ++i) {
-    if (!s.usable[i]) continue;
+    if (!usable(s, i)) continue;
     double r2 = 0.0;
     if (t != nullptr) {
       const double algebraic = t->x() * s.nx[i] + t->y() * s.ny[i] + t->z() * s.nz[i];
@@ -137,7 +247,7 @@ RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double th
     int used = 0;
     for (size_t i = 0; i < n; ++i) {
       const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-      if (!s.usable[i] || r2 >= gate2) continue;
+      if (!usable(s, i) || r2 >= gate2) continue;
       const double w = huberWeight(std::sqrt(r2), 0.5 * gate_width);
       H.noalias() += (w * m.current(i)) * m.previous(i).transpose();
       ++used;
@@ -162,7 +272,7 @@ RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double th
   int inliers = 0;
   for (size_t i = 0; i < n; ++i) {
     const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-    if (!s.usable[i] || r2 >= gate2) continue;
+    if (!usable(s, i) || r2 >= gate2) continue;
     const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]);
     const double d = p.dot(rc);
     pp.noalias() += rc.squaredNorm() * p * p.transpose();
@@ -318,7 +428,7 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
       const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
       const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
       const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
-      if (s.usable[i] && withinEpipolarGate(algebraic, tp, trc, gate_width)) gated.push_back(static_cast<uint32_t>(i));
+      if (usable(s, i) && withinEpipolarGate(algebraic, tp, trc, gate_width)) gated.push_back(static_cast<uint32_t>(i));
     }
     NormalEquations here, there;
     gatherMatches(m, gated);
@@ -384,6 +494,8 @@ void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const st
     cy[i] = current[i].y();
     cz[i] = current[i].z();
   }
+  scratch.rotated = false;
+  scratch.counting = false;
 }
 
 VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation, double threshold,
@@ -393,13 +505,13 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
   VerifiedRotation out;
   out.rotation = rotation;
   rotateAll(m, rotation);
-  std::vector<uint32_t>& moving = s.indices;  // matches a pure rotation does not explain: they carry t
+  std::vector<uint32_t>& moving = s.moving;  // matches a pure rotation does not explain: they carry t
   moving.clear();
   // The pure-rotation residual is 2-D, the epipolar one 1-D: at equal false-rejection rates
   // (95 %: 2.45 vs 1.96 sigma) the 2-D gate is 1.25 times wider.
   const double rotation_gate2 = (kRotationGateScale * threshold) * (kRotationGateScale * threshold);
   for (size_t i = 0; i < n; ++i) {
-    if (!s.usable[i]) continue;
+    if (!usable(s, i)) continue;
     if (s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i] < rotation_gate2) {
       ++out.rotation_inliers;
     } else {
@@ -409,12 +521,14 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
   out.epipolar_inliers = out.rotation_inliers;
   auto normal = [&](size_t i) { return Eigen::Vector3d(s.nx[i], s.ny[i], s.nz[i]); };
   // Samples are scored on every other match (counts doubled); the winner is recounted on all.
-  const size_t sample_stride = n >= 200 ? 2 : 1;
+  const bool sampled = n >= 200;
+  const int sample_stride = sampled ? 2 : 1;
   // A translation can at best add the moving matches to the rotation inliers; when they are too
   // few to pass the model selection in refineRotation (kTranslationGain), the search is moot.
   const bool translation_can_win =
       moving.size() >= 2 && moving.size() >= kTranslationGain * out.rotation_inliers;
   if (translation_can_win) {
+    prepareCounting(m);
     SplitMix64 rng(seed ^ 0x5452414E534C4154ull);  // "TRANSLAT"
     // 2-point samples among the moving matches, stopped adaptively: once the best translation
     // explains a fraction w of them, log(0.01) / log(1 - w^2) samples find a clean pair with 99 %
@@ -426,8 +540,8 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
       const Eigen::Vector3d t_raw = normal(a).cross(normal(b));
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();
-      const int beat = out.epipolar_inliers / static_cast<int>(sample_stride);
-      const int count = static_cast<int>(sample_stride) * countEpipolarInliers(m, t, threshold, sample_stride, beat);
+      const int beat = out.epipolar_inliers / sample_stride;
+      const int count = sample_stride * countEpipolarInliers(m, t, threshold, sampled, beat);
       if (count > out.epipolar_inliers) {
         out.epipolar_inliers = count;
         out.translation = t;
@@ -435,24 +549,33 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
         trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
     }
-    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, 1, -1);
+    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
-      // Scaled to its angular residual: the squared scale needs no square root.
-      Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+      // Scaled to its angular residual: the squared scale needs no square root. The eigensolver
+      // reads the lower triangle only, so only that is summed.
+      double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
       const Eigen::Vector3d& t = out.translation;
       for (size_t i = 0; i < n; ++i) {
         const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
         const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
         const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
-        if (!s.usable[i] || !withinEpipolarGate(algebraic, tp, trc, threshold)) continue;
+        if (!usable(s, i) || !withinEpipolarGate(algebraic, tp, trc, threshold)) continue;
         const double squared_scale = 1.0 / sampsonNorm2(tp, trc);
-        M.noalias() += (squared_scale * normal(i)) * normal(i).transpose();
+        const double sx = squared_scale * s.nx[i], sy = squared_scale * s.ny[i], sz = squared_scale * s.nz[i];
+        m00 += sx * s.nx[i];
+        m10 += sy * s.nx[i];
+        m11 += sy * s.ny[i];
+        m20 += sz * s.nx[i];
+        m21 += sz * s.ny[i];
+        m22 += sz * s.nz[i];
       }
+      Eigen::Matrix3d M;
+      M << m00, m10, m20, m10, m11, m21, m20, m21, m22;
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
       const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
-      const int count = countEpipolarInliers(m, refitted, threshold, 1, out.epipolar_inliers);
+      const int count = countEpipolarInliers(m, refitted, threshold, false, out.epipolar_inliers);
       if (count <= out.epipolar_inliers) break;
       out.epipolar_inliers = count;
       out.translation = refitted;

@@ -26,13 +26,25 @@ class FrameMatches {
   struct Scratch {
     std::vector<double> rx, ry, rz;  ///< R b_cur
     std::vector<double> nx, ny, nz;  ///< b_prev x R b_cur
-    std::vector<uint8_t> usable;     ///< b_prev and R b_cur in the same hemisphere
+    /// b_prev . R b_cur: positive when both are in the same hemisphere (the match is usable).
+    std::vector<double> facing;
     std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
     std::vector<double> residuals;  ///< squared residuals (the adaptive gate's median)
     /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur) and
     /// padded with zero bearings to whole chunks of the pass.
     std::vector<double> gpx, gpy, gpz, gcx, gcy, gcz;
     size_t gathered = 0;  ///< matches gathered, without the padding
+    /// The rotation rx..facing belong to (valid when `rotated`): a pass at an unchanged rotation
+    /// is skipped.
+    Eigen::Matrix3d rotation;
+    bool rotated = false;
+    /// The usable matches at `rotation` as the translation counts read them (n = b_prev x R b_cur,
+    /// b_prev, R b_cur; valid when `counting`): those of even index from 0 (even_count of them),
+    /// those of odd index from odd_start (odd_count), each group in index order.
+    std::vector<double> qnx, qny, qnz, qpx, qpy, qpz, qrx, qry, qrz;
+    size_t even_count = 0, odd_start = 0, odd_count = 0;
+    bool counting = false;
+    std::vector<uint32_t> moving;  ///< matches a pure rotation does not explain (verification)
   };
   Scratch scratch;
 };
