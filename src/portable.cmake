@@ -35,6 +35,7 @@ endforeach()
 if(VISUAL_GYRO_EIGEN_TARGET)
   add_library(visual_gyro_estimator_objects OBJECT
     "${VISUAL_GYRO_SRC_DIR}/core/frame_status.cpp"
+    "${VISUAL_GYRO_SRC_DIR}/core/match_passes.cpp"
     "${VISUAL_GYRO_SRC_DIR}/core/rotation_estimator.cpp"
     "${VISUAL_GYRO_SRC_DIR}/core/rotation_refinement.cpp")
   target_include_directories(visual_gyro_estimator_objects PUBLIC

@@ -12,6 +12,7 @@
 
 #include "hypothesis_math.h"
 #include "hypothesis_voter.h"
+#include "match_passes.h"
 #include "triple_batch.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
@@ -271,6 +272,85 @@ TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
   EXPECT_NEAR(vg::hyp::binCentre(r1.winner, 0.f, req.grid), 2 * kDeg, 0.1 * kDeg);
   req.matches = 2;
   EXPECT_THROW(voter->vote(req, &r1), std::invalid_argument);
+}
+
+TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
+  const vg::passes::PassTable* avx2 = vg::passes::avx2Passes();
+  if (avx2 == nullptr) GTEST_SKIP() << "no AVX2 on this CPU";
+  const vg::passes::PassTable& base = vg::passes::baselinePasses();
+  // A close scene under rotation and translation with wrong matches, a count that fills no
+  // whole chunk, a rotation and translation near the truth.
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Vector3d truth_t(0.3, -0.1, 1.0);
+  const Scene scene = makeScene(R, truth_t, 1037, 0.5e-3, 0.2, 2, 30, 17);
+  const size_t n = scene.current.size();
+  std::vector<double> p[3], c[3];
+  for (int a = 0; a < 3; ++a) {
+    p[a].resize(n);
+    c[a].resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      p[a][i] = scene.previous[i][a];
+      c[a][i] = scene.current[i][a];
+    }
+  }
+  const Matrix3d R_near = R * vg::rotationFromYawPitchRoll(0.05 * kDeg, 0.02 * kDeg, -0.03 * kDeg);
+  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> rows = R_near;
+  using Arrays = std::array<std::vector<double>, 7>;  // r, n, facing
+  auto rotate = [&](const vg::passes::PassTable& table, Arrays* out) {
+    for (std::vector<double>& v : *out) v.assign(n, 0.0);
+    Arrays& o = *out;
+    table.rotate(n, rows.data(), p[0].data(), p[1].data(), p[2].data(), c[0].data(), c[1].data(), c[2].data(),
+                 o[0].data(), o[1].data(), o[2].data(), o[3].data(), o[4].data(), o[5].data(), o[6].data());
+  };
+  Arrays base_rotated, avx2_rotated;
+  rotate(base, &base_rotated);
+  rotate(*avx2, &avx2_rotated);
+  for (int a = 0; a < 7; ++a) ASSERT_EQ(std::memcmp(base_rotated[a].data(), avx2_rotated[a].data(), n * sizeof(double)), 0);
+  const Arrays& o = base_rotated;
+  const vg::passes::MatchArrays arrays = {p[0].data(), p[1].data(), p[2].data(), o[0].data(), o[1].data(),
+                                          o[2].data(),  o[3].data(), o[4].data(), o[5].data(), o[6].data()};
+  for (const Vector3d& t_raw : {truth_t, Vector3d(0.31, -0.09, 1.0), Vector3d(1.0, 0.0, 0.2)}) {
+    const Vector3d t = t_raw.normalized();
+    for (double gate : {0.1 * kDeg, 0.5 * kDeg}) {
+      EXPECT_EQ(base.countWithinGate(arrays, 0, n, t.data(), gate * gate),
+                avx2->countWithinGate(arrays, 0, n, t.data(), gate * gate));
+      EXPECT_EQ(base.countWithinGate(arrays, 5, 70, t.data(), gate * gate),
+                avx2->countWithinGate(arrays, 5, 70, t.data(), gate * gate));
+      std::vector<double> base_weights(n), avx2_weights(n);
+      base.gateWeights(arrays, n, t.data(), gate * gate, base_weights.data());
+      avx2->gateWeights(arrays, n, t.data(), gate * gate, avx2_weights.data());
+      ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      // The normal equations over a subset of the matches, each variant's layout.
+      std::vector<uint32_t> subset;
+      for (size_t i = 0; i < n; i += 1 + i % 3) subset.push_back(static_cast<uint32_t>(i));
+      const size_t padded = (subset.size() + vg::passes::kChunk - 1) / vg::passes::kChunk * vg::passes::kChunk;
+      Eigen::Matrix<double, 3, 2> B;
+      B.col(0) = t.cross(Vector3d::UnitX()).normalized();
+      B.col(1) = t.cross(B.col(0));
+      for (bool tukey : {true, false}) {
+        vg::passes::EpipolarSums sums[2];
+        for (int variant = 0; variant < 2; ++variant) {
+          const vg::passes::PassTable& table = variant == 0 ? base : *avx2;
+          std::vector<double> g[6];
+          for (int a = 0; a < 6; ++a) g[a].assign(padded, 0.0);
+          for (size_t k = 0; k < subset.size(); ++k) {
+            const size_t at = vg::passes::gatheredPosition(k, table.interleaved);
+            for (int a = 0; a < 3; ++a) {
+              g[a][at] = p[a][subset[k]];
+              g[3 + a][at] = c[a][subset[k]];
+            }
+          }
+          table.sumEpipolar(g[0].data(), g[1].data(), g[2].data(), g[3].data(), g[4].data(), g[5].data(),
+                            subset.size(), rows.data(), t.data(), B.data(), gate, tukey, &sums[variant]);
+        }
+        EXPECT_EQ(std::memcmp(sums[0].a, sums[1].a, sizeof(sums[0].a)), 0) << "tukey " << tukey;
+        EXPECT_EQ(std::memcmp(sums[0].g, sums[1].g, sizeof(sums[0].g)), 0) << "tukey " << tukey;
+        EXPECT_EQ(std::memcmp(&sums[0].cost, &sums[1].cost, sizeof(double)), 0) << "tukey " << tukey;
+        EXPECT_EQ(sums[0].used, sums[1].used);
+        EXPECT_GT(sums[0].used, 0);
+      }
+    }
+  }
 }
 
 TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {

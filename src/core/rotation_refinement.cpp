@@ -1,4 +1,5 @@
 #include "rotation_refinement.h"
+#include "match_passes.h"
 #include "visual_gyro/geometry.h"
 #include "visual_gyro/random.h"
 
@@ -33,7 +34,7 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
 // (|t x v|^2 = 1 - (t.v)^2 for unit vectors). The algebraic residual shrinks with the distance of
 // the bearings from the epipole, so wrong matches near the focus of expansion pass an algebraic
 // gate as easily as right ones; the geometric residual treats every match alike.
-inline double sampsonNorm2(double tp, double trc) { return std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6); }
+using passes::sampsonNorm2;
 
 // The angular distance below gate without a square root or a division (this runs for every match
 // of every translation sample). The squared norm is at most 1, so this also implies
@@ -50,30 +51,6 @@ double huberWeight(double r, double k) {
   return a <= k ? 1.0 : k / a;
 }
 
-// rotateAll's loop. Its arrays are function parameters so that the compiler may take them as not
-// overlapping (restrict) and vectorise the loop.
-void rotateMatches(size_t n, const Eigen::Matrix3d& R, const double* __restrict px, const double* __restrict py,
-                   const double* __restrict pz, const double* __restrict cx, const double* __restrict cy,
-                   const double* __restrict cz, double* __restrict out_rx, double* __restrict out_ry,
-                   double* __restrict out_rz, double* __restrict out_nx, double* __restrict out_ny,
-                   double* __restrict out_nz, double* __restrict facing) {
-  const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2);
-  const double r10 = R(1, 0), r11 = R(1, 1), r12 = R(1, 2);
-  const double r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
-  for (size_t i = 0; i < n; ++i) {
-    const double rx = r00 * cx[i] + r01 * cy[i] + r02 * cz[i];
-    const double ry = r10 * cx[i] + r11 * cy[i] + r12 * cz[i];
-    const double rz = r20 * cx[i] + r21 * cy[i] + r22 * cz[i];
-    out_rx[i] = rx;
-    out_ry[i] = ry;
-    out_rz[i] = rz;
-    out_nx[i] = py[i] * rz - pz[i] * ry;
-    out_ny[i] = pz[i] * rx - px[i] * rz;
-    out_nz[i] = px[i] * ry - py[i] * rx;
-    facing[i] = px[i] * rx + py[i] * ry + pz[i] * rz;
-  }
-}
-
 // R b_cur, b_prev x R b_cur and the hemisphere test of every match into the scratch arrays: the
 // one pass per rotation that the counting and gating loops then read. Matches whose bearings
 // point into opposite half-spaces after the rotation cannot be one point. A rotation equal to the
@@ -85,8 +62,10 @@ void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
   const size_t n = m.size();
   for (std::vector<double>* v : {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz}) v->resize(n);
   s.facing.resize(n);
-  rotateMatches(n, R, m.px.data(), m.py.data(), m.pz.data(), m.cx.data(), m.cy.data(), m.cz.data(), s.rx.data(),
-                s.ry.data(), s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data());
+  const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
+  passes::passes().rotate(n, rows, m.px.data(), m.py.data(), m.pz.data(), m.cx.data(), m.cy.data(), m.cz.data(),
+                          s.rx.data(), s.ry.data(), s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(),
+                          s.facing.data());
   s.rotation = R;
   s.rotated = true;
   s.counting = false;
@@ -121,41 +100,17 @@ void prepareCounting(FrameMatches& m) {
   s.counting = true;
 }
 
-// Epipolar inliers of translation t among the counting arrays' matches [begin, end): a loop
-// without branches, vectorised by the compiler. The test is withinEpipolarGate's, operation for
-// operation (gate2 = gate * gate).
-inline __attribute__((always_inline)) int countEpipolarRange(const FrameMatches::Scratch& s, size_t begin,
-                                                             size_t end, double tx, double ty, double tz,
-                                                             double gate2) {
-  const double* __restrict nx = s.qnx.data();
-  const double* __restrict ny = s.qny.data();
-  const double* __restrict nz = s.qnz.data();
-  const double* __restrict px = s.qpx.data();
-  const double* __restrict py = s.qpy.data();
-  const double* __restrict pz = s.qpz.data();
-  const double* __restrict rx = s.qrx.data();
-  const double* __restrict ry = s.qry.data();
-  const double* __restrict rz = s.qrz.data();
-  int count = 0;
-  for (size_t i = begin; i < end; ++i) {
-    const double algebraic = tx * nx[i] + ty * ny[i] + tz * nz[i];
-    const double tp = tx * px[i] + ty * py[i] + tz * pz[i];
-    const double trc = tx * rx[i] + ty * ry[i] + tz * rz[i];
-    count += algebraic * algebraic < gate2 * sampsonNorm2(tp, trc);
-  }
-  return count;
-}
-
 // Epipolar inliers of translation t among the counting arrays' matches: the first group only when
 // `sampled` (every other match), else both. Only a count above `beat` is of use to the caller: the
 // count stops, returning something no larger, as soon as the matches left cannot lift it above
 // `beat` (most sampled translations are wrong and are given up after a fraction of the matches).
 // Checked once per block, so that the loop within a block has no early exit.
-inline __attribute__((always_inline)) int countEpipolarInliersIn(const FrameMatches::Scratch& s,
-                                                                 const Eigen::Vector3d& t, double gate,
-                                                                 bool sampled, int beat) {
+int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, bool sampled, int beat) {
   constexpr size_t kBlock = 64;
-  const double tx = t.x(), ty = t.y(), tz = t.z();
+  const FrameMatches::Scratch& s = m.scratch;
+  const passes::MatchArrays arrays = {s.qpx.data(), s.qpy.data(), s.qpz.data(), s.qrx.data(), s.qry.data(),
+                                      s.qrz.data(), s.qnx.data(), s.qny.data(), s.qnz.data(), nullptr};
+  const auto count_within = passes::passes().countWithinGate;
   const double gate2 = gate * gate;
   const size_t groups[2][2] = {{0, s.even_count}, {s.odd_start, s.odd_start + s.odd_count}};
   size_t left = s.even_count + (sampled ? 0 : s.odd_count);
@@ -164,44 +119,11 @@ inline __attribute__((always_inline)) int countEpipolarInliersIn(const FrameMatc
     for (size_t block = groups[g][0]; block < groups[g][1]; block += kBlock) {
       if (count + static_cast<int>(left) <= beat) return count;
       const size_t end = std::min(groups[g][1], block + kBlock);
-      count += countEpipolarRange(s, block, end, tx, ty, tz, gate2);
+      count += count_within(arrays, block, end, t.data(), gate2);
       left -= end - block;
     }
   }
   return count;
-}
-
-int countEpipolarInliersGeneric(const FrameMatches::Scratch& s, const Eigen::Vector3d& t, double gate, bool sampled,
-                                int beat) {
-  return countEpipolarInliersIn(s, t, gate, sampled, beat);
-}
-
-using CountEpipolarInliers = int (*)(const FrameMatches::Scratch&, const Eigen::Vector3d&, double, bool, int);
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// Four matches per instruction; used only when the CPU reports AVX2 (runtime dispatch). Without
-// FMA, as everywhere in the build: the same operations, so the same counts.
-__attribute__((target("avx2"))) int countEpipolarInliersAvx2(const FrameMatches::Scratch& s,
-                                                             const Eigen::Vector3d& t, double gate, bool sampled,
-                                                             int beat) {
-  return countEpipolarInliersIn(s, t, gate, sampled, beat);
-}
-#endif
-
-CountEpipolarInliers selectCountEpipolarInliers() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return countEpipolarInliersAvx2;
-#endif
-  return countEpipolarInliersGeneric;
-}
-
-const CountEpipolarInliers countEpipolarInliersImpl = selectCountEpipolarInliers();
-
-// Epipolar inliers of translation t at the rotation of the last prepareCounting (see
-// countEpipolarInliersIn).
-int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, bool sampled, int beat) {
-  return countEpipolarInliersImpl(m.scratch, t, gate, sampled, beat);
 }
 
 // 3.5 robust sigmas (1.4826 MAD) of the residuals below the threshold, clamped to
@@ -309,22 +231,28 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
-// Chunk length of the summing passes (a multiple of every SIMD width Eigen uses for doubles).
-constexpr int kChunk = 32;
-
-// Gathers the matches `indices` into the scratch's contiguous arrays, padded with zero bearings.
+// Gathers the matches `indices` into the scratch's contiguous arrays, padded with zero bearings to
+// whole chunks, where the summing pass of this CPU wants them (passes::PassTable).
 void gatherMatches(FrameMatches& m, const std::vector<uint32_t>& indices) {
   FrameMatches::Scratch& s = m.scratch;
   const size_t count = indices.size();
-  const size_t padded = (count + kChunk - 1) / kChunk * kChunk;
+  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  const bool interleaved = passes::passes().interleaved;
   std::vector<double>* to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
-  const std::vector<double>* from[6] = {&m.px, &m.py, &m.pz, &m.cx, &m.cy, &m.cz};
+  double* out[6];
   for (int a = 0; a < 6; ++a) {
     to[a]->resize(padded);
-    double* out = to[a]->data();
-    const double* in = from[a]->data();
-    for (size_t k = 0; k < count; ++k) out[k] = in[indices[k]];
-    std::fill(out + count, out + padded, 0.0);
+    out[a] = to[a]->data();
+    std::fill(out[a] + count / passes::kChunk * passes::kChunk, out[a] + padded, 0.0);  // the last chunk
+  }
+  for (size_t k = 0; k < count; ++k) {
+    const size_t at = passes::gatheredPosition(k, interleaved), from = indices[k];
+    out[0][at] = m.px[from];
+    out[1][at] = m.py[from];
+    out[2][at] = m.pz[from];
+    out[3][at] = m.cx[from];
+    out[4][at] = m.cy[from];
+    out[5][at] = m.cz[from];
   }
   s.gathered = count;
 }
@@ -335,65 +263,28 @@ void gatherMatches(FrameMatches& m, const std::vector<uint32_t>& indices) {
 // = -(R^T ((t x p) x Rc))^T for the rotation, n^T B for the tangent-plane translation step; the
 // sums are taken with the rotation part's R^T left out and it is applied once at the end. This
 // runs for every gated match in every iteration, so the matches are processed in fixed-size
-// chunks of array expressions (vectorised by Eigen) and only the 15 distinct entries of the
-// symmetric matrix are summed. The padding's zero bearings have zero residual and Jacobian: they
-// add nothing.
+// chunks of vectorised arithmetic (passes::PassTable::sumEpipolar) and only the 15 distinct
+// entries of the symmetric matrix are summed. The padding's zero bearings have zero residual and
+// Jacobian: they add nothing.
 void accumulateEpipolar(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate,
                         Weighting weighting, NormalEquations* ne) {
-  using Chunk = Eigen::Array<double, kChunk, 1>;
   const FrameMatches::Scratch& s = m.scratch;
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
-  const double tx = t.x(), ty = t.y(), tz = t.z();
-  double a[15] = {}, g[5] = {};
-  double cost = 0.0;
-  int used = 0;
-  for (size_t start = 0; start < s.gathered; start += kChunk) {
-    const int len = static_cast<int>(std::min<size_t>(kChunk, s.gathered - start));
-    const Eigen::Map<const Chunk> px(s.gpx.data() + start), py(s.gpy.data() + start), pz(s.gpz.data() + start);
-    const Eigen::Map<const Chunk> cx(s.gcx.data() + start), cy(s.gcy.data() + start), cz(s.gcz.data() + start);
-    const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
-    const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
-    const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
-    const Chunk nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
-    // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
-    const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
-    const Chunk scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
-    const Chunk r = (tx * nx + ty * ny + tz * nz) * scale;
-    Chunk w;
-    if (weighting == Weighting::kTukey) {
-      // Tukey's biweight with cut-off `gate`: matches near the gate, most likely wrong ones that
-      // slipped in, lose their influence smoothly instead of pulling with a constant (Huber) force.
-      const Chunk u2 = (r * (1.0 / gate)).square();
-      w = (u2 < 1.0).select((1.0 - u2).square(), 0.0);
-      cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).sum();
-      used += len;
-    } else {
-      w = (r.abs() < gate && px * rx + py * ry + pz * rz > 0.0).select(Chunk::Ones(), Chunk::Zero());
-      cost += (w * r.square()).sum();
-      used += static_cast<int>(w.sum());
-    }
-    const Chunk qx = ty * pz - tz * py, qy = tz * px - tx * pz, qz = tx * py - ty * px;  // t x p
-    const Chunk j[5] = {qz * ry - qy * rz, qx * rz - qz * rx, qy * rx - qx * ry,
-                        nx * B(0, 0) + ny * B(1, 0) + nz * B(2, 0), nx * B(0, 1) + ny * B(1, 1) + nz * B(2, 1)};
-    const Chunk ws = w * scale.square(), wr = w * r * scale;
-    int k = 0;
-    for (int row = 0; row < 5; ++row) {
-      g[row] += (wr * j[row]).sum();
-      const Chunk wj = ws * j[row];
-      for (int col = row; col < 5; ++col) a[k++] += (wj * j[col]).sum();
-    }
-  }
+  const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
+  passes::EpipolarSums sums;
+  passes::passes().sumEpipolar(s.gpx.data(), s.gpy.data(), s.gpz.data(), s.gcx.data(), s.gcy.data(), s.gcz.data(),
+                               s.gathered, rows, t.data(), B.data(), gate, weighting == Weighting::kTukey, &sums);
   Eigen::Matrix<double, 5, 5> A;
   int k = 0;
   for (int row = 0; row < 5; ++row)
-    for (int col = row; col < 5; ++col) A(row, col) = A(col, row) = a[k++];
+    for (int col = row; col < 5; ++col) A(row, col) = A(col, row) = sums.a[k++];
   Eigen::Matrix<double, 5, 5> T = Eigen::Matrix<double, 5, 5>::Identity();
   T.topLeftCorner<3, 3>() = R.transpose();
   ne->A.noalias() = T * A * T.transpose();
-  ne->g.noalias() = T * Eigen::Map<const Eigen::Matrix<double, 5, 1>>(g);
+  ne->g.noalias() = T * Eigen::Map<const Eigen::Matrix<double, 5, 1>>(sums.g);
   ne->B = B;
-  ne->cost = cost;
-  ne->used = used;
+  ne->cost = sums.cost;
+  ne->used = sums.used;
 }
 
 RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3d t, double threshold,
@@ -552,18 +443,18 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
     if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
+    const passes::MatchArrays arrays = {m.px.data(), m.py.data(), m.pz.data(), s.rx.data(), s.ry.data(),
+                                        s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data()};
+    s.weights.resize(n);
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
-      // Scaled to its angular residual: the squared scale needs no square root. The eigensolver
-      // reads the lower triangle only, so only that is summed.
+      // Scaled to its angular residual: the squared scale needs no square root. The weights (the
+      // squared scale of the inliers, zero for the others, which then add exact zeros) come from
+      // one vectorised pass; the sums run in index order. The eigensolver reads the lower triangle
+      // only, so only that is summed.
+      passes::passes().gateWeights(arrays, n, out.translation.data(), threshold * threshold, s.weights.data());
       double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
-      const Eigen::Vector3d& t = out.translation;
       for (size_t i = 0; i < n; ++i) {
-        const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
-        const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
-        const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
-        if (!usable(s, i) || !withinEpipolarGate(algebraic, tp, trc, threshold)) continue;
-        const double squared_scale = 1.0 / sampsonNorm2(tp, trc);
-        const double sx = squared_scale * s.nx[i], sy = squared_scale * s.ny[i], sz = squared_scale * s.nz[i];
+        const double sx = s.weights[i] * s.nx[i], sy = s.weights[i] * s.ny[i], sz = s.weights[i] * s.nz[i];
         m00 += sx * s.nx[i];
         m10 += sy * s.nx[i];
         m11 += sy * s.ny[i];

@@ -30,6 +30,7 @@ class FrameMatches {
     std::vector<double> facing;
     std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
     std::vector<double> residuals;  ///< squared residuals (the adaptive gate's median)
+    std::vector<double> weights;    ///< per-match weights (the translation refit's)
     /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur) and
     /// padded with zero bearings to whole chunks of the pass.
     std::vector<double> gpx, gpy, gpz, gcx, gcy, gcz;
