@@ -320,6 +320,11 @@ TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
       base.gateWeights(arrays, n, t.data(), gate * gate, base_weights.data());
       avx2->gateWeights(arrays, n, t.data(), gate * gate, avx2_weights.data());
       ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      for (const double* direction : {t.data(), static_cast<const double*>(nullptr)}) {
+        base.residuals2(arrays, n, direction, base_weights.data());
+        avx2->residuals2(arrays, n, direction, avx2_weights.data());
+        ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      }
       // The normal equations over a subset of the matches, each variant's layout.
       std::vector<uint32_t> subset;
       for (size_t i = 0; i < n; i += 1 + i % 3) subset.push_back(static_cast<uint32_t>(i));

@@ -70,6 +70,23 @@ VG_BODY void weightsBody(size_t n, const double* t, double gate2, const double* 
   }
 }
 
+VG_BODY void residualsBody(size_t n, const double* t, const double* __restrict px, const double* __restrict py,
+                           const double* __restrict pz, const double* __restrict rx, const double* __restrict ry,
+                           const double* __restrict rz, const double* __restrict nx, const double* __restrict ny,
+                           const double* __restrict nz, double* __restrict r2) {
+  if (t == nullptr) {
+    for (size_t i = 0; i < n; ++i) r2[i] = nx[i] * nx[i] + ny[i] * ny[i] + nz[i] * nz[i];
+    return;
+  }
+  const double tx = t[0], ty = t[1], tz = t[2];
+  for (size_t i = 0; i < n; ++i) {
+    const double algebraic = tx * nx[i] + ty * ny[i] + tz * nz[i];
+    const double tp = tx * px[i] + ty * py[i] + tz * pz[i];
+    const double trc = tx * rx[i] + ty * ry[i] + tz * rz[i];
+    r2[i] = algebraic * algebraic / sampsonNorm2(tp, trc);
+  }
+}
+
 #undef VG_BODY
 
 void rotateBaseline(size_t n, const double* R, const double* px, const double* py, const double* pz, const double* cx,
@@ -84,6 +101,10 @@ int countBaseline(const MatchArrays& m, size_t begin, size_t end, const double* 
 
 void weightsBaseline(const MatchArrays& m, size_t n, const double* t, double gate2, double* w) {
   weightsBody(n, t, gate2, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, m.facing, w);
+}
+
+void residualsBaseline(const MatchArrays& m, size_t n, const double* t, double* r2) {
+  residualsBody(n, t, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, r2);
 }
 
 // The Jacobian rows and residuals of the epipolar cost, summed by chunks of array expressions
@@ -135,7 +156,8 @@ void sumEpipolarBaseline(const double* gpx, const double* gpy, const double* gpz
   }
 }
 
-const PassTable kBaseline = {rotateBaseline, countBaseline, weightsBaseline, sumEpipolarBaseline, false};
+const PassTable kBaseline = {rotateBaseline, countBaseline, weightsBaseline, residualsBaseline, sumEpipolarBaseline,
+                             false};
 
 #ifdef VG_MATCH_PASSES_AVX2
 
@@ -154,6 +176,10 @@ __attribute__((target("avx2"))) int countAvx2(const MatchArrays& m, size_t begin
 __attribute__((target("avx2"))) void weightsAvx2(const MatchArrays& m, size_t n, const double* t, double gate2,
                                                  double* w) {
   weightsBody(n, t, gate2, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, m.facing, w);
+}
+
+__attribute__((target("avx2"))) void residualsAvx2(const MatchArrays& m, size_t n, const double* t, double* r2) {
+  residualsBody(n, t, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, r2);
 }
 
 __attribute__((target("avx2"))) inline __m256d add(__m256d x, __m256d y) { return _mm256_add_pd(x, y); }
@@ -255,7 +281,7 @@ __attribute__((target("avx2"))) void sumEpipolarAvx2(const double* gpx, const do
   }
 }
 
-const PassTable kAvx2 = {rotateAvx2, countAvx2, weightsAvx2, sumEpipolarAvx2, true};
+const PassTable kAvx2 = {rotateAvx2, countAvx2, weightsAvx2, residualsAvx2, sumEpipolarAvx2, true};
 
 #endif
 

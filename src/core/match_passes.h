@@ -12,7 +12,11 @@ namespace visual_gyro {
 namespace passes {
 
 /// Squared symmetric Sampson-style norm of the gradient of the epipolar residual t.(p x Rc), from
-/// tp = t.p and trc = t.Rc (|t x v|^2 = 1 - (t.v)^2 for unit vectors), floored.
+/// tp = t.p and trc = t.Rc (|t x v|^2 = 1 - (t.v)^2 for unit vectors), floored. The residual over
+/// this norm is the angular distance of the match from its epipolar plane: the algebraic residual
+/// shrinks with the distance of the bearings from the epipole, so wrong matches near the focus of
+/// expansion would pass an algebraic gate as easily as right ones; the angular one treats every
+/// match alike.
 inline double sampsonNorm2(double tp, double trc) { return std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6); }
 
 /// Bearings and the quantities of one rotation R, structure of arrays: p = b_prev, c = b_cur,
@@ -47,6 +51,9 @@ struct PassTable {
   /// w[i] = 1 / sampsonNorm2(t.p, t.r) for the usable matches within the gate as countWithinGate
   /// tests it, 0 for the others; i < n.
   void (*gateWeights)(const MatchArrays& m, size_t n, const double* t, double gate2, double* w);
+  /// r2[i] = (t.n)^2 / sampsonNorm2(t.p, t.r), the squared angular epipolar residual, or with
+  /// t == nullptr |n|^2, the squared pure-rotation residual; i < n.
+  void (*residuals2)(const MatchArrays& m, size_t n, const double* t, double* r2);
   /// Adds the epipolar normal equations of the gathered matches (gp*, gc*: b_prev, b_cur laid out
   /// as gatheredPosition places them for `interleaved`, `count` of them padded with zero bearings to whole chunks)
   /// at rotation R (row-major R[9]) and unit translation t with tangent basis B (column-major

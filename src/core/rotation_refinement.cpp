@@ -29,22 +29,15 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
   return B;
 }
 
-// Angular distance of the match from its epipolar plane: the algebraic residual t.(p x Rc) divided
-// by the symmetric Sampson-style norm of its gradient, whose square this returns from t.p and t.Rc
-// (|t x v|^2 = 1 - (t.v)^2 for unit vectors). The algebraic residual shrinks with the distance of
-// the bearings from the epipole, so wrong matches near the focus of expansion pass an algebraic
-// gate as easily as right ones; the geometric residual treats every match alike.
-using passes::sampsonNorm2;
-
-// The angular distance below gate without a square root or a division (this runs for every match
-// of every translation sample). The squared norm is at most 1, so this also implies
-// |t . normal| < gate.
-inline bool withinEpipolarGate(double algebraic, double tp, double trc, double gate) {
-  return algebraic * algebraic < gate * gate * sampsonNorm2(tp, trc);
-}
-
 // Whether match i's bearings are in the same hemisphere at the last rotateAll's rotation.
 inline bool usable(const FrameMatches::Scratch& s, size_t i) { return s.facing[i] > 0.0; }
+
+// The matches and the scratch's arrays of the last rotateAll, for the passes.
+passes::MatchArrays matchArrays(const FrameMatches& m) {
+  const FrameMatches::Scratch& s = m.scratch;
+  return {m.px.data(), m.py.data(), m.pz.data(), s.rx.data(), s.ry.data(),
+          s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data()};
+}
 
 double huberWeight(double r, double k) {
   const double a = std::abs(r);
@@ -132,22 +125,20 @@ int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double
 // match's), which need no square root per match.
 double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold) {
   FrameMatches::Scratch& s = m.scratch;
+  const size_t n = m.size();
   std::vector<double>& squared = s.residuals;
-  squared.clear();
+  // The residuals of every match in one vectorised pass, then those of the usable matches below
+  // the threshold kept (in index order) without a branch.
+  s.weights.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, t != nullptr ? t->data() : nullptr, s.weights.data());
+  squared.resize(n);
   const double threshold2 = threshold * threshold;
-  for (size_t i = 0; i < m.size(); ++i) {
-    if (!usable(s, i)) continue;
-    double r2 = 0.0;
-    if (t != nullptr) {
-      const double algebraic = t->x() * s.nx[i] + t->y() * s.ny[i] + t->z() * s.nz[i];
-      const double tp = t->x() * m.px[i] + t->y() * m.py[i] + t->z() * m.pz[i];
-      const double trc = t->x() * s.rx[i] + t->y() * s.ry[i] + t->z() * s.rz[i];
-      r2 = algebraic * algebraic / sampsonNorm2(tp, trc);
-    } else {
-      r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-    }
-    if (r2 < threshold2) squared.push_back(r2);
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i) {
+    squared[kept] = s.weights[i];
+    kept += usable(s, i) && s.weights[i] < threshold2;
   }
+  squared.resize(kept);
   if (squared.size() < 10) return threshold;
   const size_t mid = squared.size() / 2;
   std::nth_element(squared.begin(), squared.begin() + mid, squared.end());
@@ -231,28 +222,35 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
-// Gathers the matches `indices` into the scratch's contiguous arrays, padded with zero bearings to
-// whole chunks, where the summing pass of this CPU wants them (passes::PassTable).
-void gatherMatches(FrameMatches& m, const std::vector<uint32_t>& indices) {
+// Gathers every stride-th match whose keep[i] is not zero (every match when keep is nullptr) into
+// the scratch's contiguous arrays, padded with zero bearings to whole chunks, where the summing pass
+// of this CPU wants them (passes::PassTable).
+void gatherMatches(FrameMatches& m, const double* keep, size_t stride) {
   FrameMatches::Scratch& s = m.scratch;
-  const size_t count = indices.size();
-  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  const size_t n = m.size();
+  const size_t capacity = (n + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
   const bool interleaved = passes::passes().interleaved;
   std::vector<double>* to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
   double* out[6];
   for (int a = 0; a < 6; ++a) {
-    to[a]->resize(padded);
+    to[a]->resize(capacity);
     out[a] = to[a]->data();
-    std::fill(out[a] + count / passes::kChunk * passes::kChunk, out[a] + padded, 0.0);  // the last chunk
   }
-  for (size_t k = 0; k < count; ++k) {
-    const size_t at = passes::gatheredPosition(k, interleaved), from = indices[k];
-    out[0][at] = m.px[from];
-    out[1][at] = m.py[from];
-    out[2][at] = m.pz[from];
-    out[3][at] = m.cx[from];
-    out[4][at] = m.cy[from];
-    out[5][at] = m.cz[from];
+  size_t count = 0;
+  for (size_t i = 0; i < n; i += stride) {
+    if (keep != nullptr && keep[i] == 0.0) continue;
+    const size_t at = passes::gatheredPosition(count++, interleaved);
+    out[0][at] = m.px[i];
+    out[1][at] = m.py[i];
+    out[2][at] = m.pz[i];
+    out[3][at] = m.cx[i];
+    out[4][at] = m.cy[i];
+    out[5][at] = m.cz[i];
+  }
+  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  for (size_t k = count; k < padded; ++k) {
+    const size_t at = passes::gatheredPosition(k, interleaved);
+    for (int a = 0; a < 6; ++a) out[a][at] = 0.0;
   }
   s.gathered = count;
 }
@@ -291,7 +289,6 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
                               int iterations, bool warm) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
-  std::vector<uint32_t>& gated = s.indices;
   RefinedRotation out;
   double lambda = 1e-6;
   // The inlier gate is fixed per outer round (residuals of the round's start), so each
@@ -314,15 +311,11 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
     const int round_iterations = last ? iterations : std::min(iterations, 2);
     // ... on every other match: enough to find the basin; the last round uses them all.
     const size_t stride = last || n < 300 ? 1 : 2;
-    gated.clear();
-    for (size_t i = 0; i < n; i += stride) {
-      const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
-      const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
-      const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
-      if (usable(s, i) && withinEpipolarGate(algebraic, tp, trc, gate_width)) gated.push_back(static_cast<uint32_t>(i));
-    }
+    // The usable matches within the gate (a non-zero weight), gathered for the summing passes.
+    s.weights.resize(n);
+    passes::passes().gateWeights(matchArrays(m), n, t.data(), gate_width * gate_width, s.weights.data());
     NormalEquations here, there;
-    gatherMatches(m, gated);
+    gatherMatches(m, s.weights.data(), stride);
     accumulateEpipolar(m, R, t, gate_width, Weighting::kTukey, &here);
     for (int it = 0; it < round_iterations && here.used >= 6; ++it) {
       // Levenberg-Marquardt damping: under (nearly) pure rotation the translation direction is
@@ -352,10 +345,8 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
     }
   }
   // Covariance: sigma^2 (J^T W J)^-1 at the solution, over the final inliers.
-  gated.resize(n);
-  for (size_t i = 0; i < n; ++i) gated[i] = static_cast<uint32_t>(i);
   NormalEquations final_fit;
-  gatherMatches(m, gated);
+  gatherMatches(m, nullptr, 1);
   accumulateEpipolar(m, R, t, threshold, Weighting::kInliers, &final_fit);
   const int inliers = final_fit.used;
   out.rotation = R;
@@ -443,8 +434,7 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
     if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
-    const passes::MatchArrays arrays = {m.px.data(), m.py.data(), m.pz.data(), s.rx.data(), s.ry.data(),
-                                        s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data()};
+    const passes::MatchArrays arrays = matchArrays(m);
     s.weights.resize(n);
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
       // Scaled to its angular residual: the squared scale needs no square root. The weights (the

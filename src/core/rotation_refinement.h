@@ -28,11 +28,11 @@ class FrameMatches {
     std::vector<double> nx, ny, nz;  ///< b_prev x R b_cur
     /// b_prev . R b_cur: positive when both are in the same hemisphere (the match is usable).
     std::vector<double> facing;
-    std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
     std::vector<double> residuals;  ///< squared residuals (the adaptive gate's median)
-    std::vector<double> weights;    ///< per-match weights (the translation refit's)
-    /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur) and
-    /// padded with zero bearings to whole chunks of the pass.
+    /// Per-match results of the last pass over all matches (weights, squared residuals).
+    std::vector<double> weights;
+    /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur; in the
+    /// order passes::gatheredPosition gives) and padded with zero bearings to whole chunks.
     std::vector<double> gpx, gpy, gpz, gcx, gcy, gcz;
     size_t gathered = 0;  ///< matches gathered, without the padding
     /// The rotation rx..facing belong to (valid when `rotated`): a pass at an unchanged rotation
