@@ -54,22 +54,6 @@ VG_BODY int countBody(const MatchArrays& m, size_t begin, size_t end, const doub
   return count;
 }
 
-VG_BODY void weightsBody(size_t n, const double* t, double gate2, const double* __restrict px,
-                         const double* __restrict py, const double* __restrict pz, const double* __restrict rx,
-                         const double* __restrict ry, const double* __restrict rz, const double* __restrict nx,
-                         const double* __restrict ny, const double* __restrict nz, const double* __restrict facing,
-                         double* __restrict w) {
-  const double tx = t[0], ty = t[1], tz = t[2];
-  for (size_t i = 0; i < n; ++i) {
-    const double algebraic = tx * nx[i] + ty * ny[i] + tz * nz[i];
-    const double tp = tx * px[i] + ty * py[i] + tz * pz[i];
-    const double trc = tx * rx[i] + ty * ry[i] + tz * rz[i];
-    const double norm2 = sampsonNorm2(tp, trc);
-    const double weight = 1.0 / norm2;
-    w[i] = facing[i] > 0.0 && algebraic * algebraic < gate2 * norm2 ? weight : 0.0;
-  }
-}
-
 VG_BODY void residualsBody(size_t n, const double* t, const double* __restrict px, const double* __restrict py,
                            const double* __restrict pz, const double* __restrict rx, const double* __restrict ry,
                            const double* __restrict rz, const double* __restrict nx, const double* __restrict ny,
@@ -100,7 +84,14 @@ int countBaseline(const MatchArrays& m, size_t begin, size_t end, const double* 
 }
 
 void weightsBaseline(const MatchArrays& m, size_t n, const double* t, double gate2, double* w) {
-  weightsBody(n, t, gate2, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, m.facing, w);
+  const double tx = t[0], ty = t[1], tz = t[2];
+  for (size_t i = 0; i < n; ++i) {
+    const double algebraic = tx * m.nx[i] + ty * m.ny[i] + tz * m.nz[i];
+    const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
+    const double trc = tx * m.rx[i] + ty * m.ry[i] + tz * m.rz[i];
+    const double norm2 = sampsonNorm2(tp, trc);
+    w[i] = m.facing[i] > 0.0 && algebraic * algebraic < gate2 * norm2 ? 1.0 / norm2 : 0.0;
+  }
 }
 
 void residualsBaseline(const MatchArrays& m, size_t n, const double* t, double* r2) {
@@ -173,18 +164,43 @@ __attribute__((target("avx2"))) int countAvx2(const MatchArrays& m, size_t begin
   return countBody(m, begin, end, t, gate2);
 }
 
+__attribute__((target("avx2"))) inline __m256d add(__m256d x, __m256d y) { return _mm256_add_pd(x, y); }
+__attribute__((target("avx2"))) inline __m256d sub(__m256d x, __m256d y) { return _mm256_sub_pd(x, y); }
+__attribute__((target("avx2"))) inline __m256d mul(__m256d x, __m256d y) { return _mm256_mul_pd(x, y); }
+
+// weightsBaseline four matches per instruction. Written out: the compiler turns the plain loop's
+// 1 / max(x, 1e-6) into a branch around the division, which it then cannot vectorise.
 __attribute__((target("avx2"))) void weightsAvx2(const MatchArrays& m, size_t n, const double* t, double gate2,
                                                  double* w) {
-  weightsBody(n, t, gate2, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, m.facing, w);
+  const __m256d tx = _mm256_set1_pd(t[0]), ty = _mm256_set1_pd(t[1]), tz = _mm256_set1_pd(t[2]);
+  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const __m256d gate2_v = _mm256_set1_pd(gate2), zero = _mm256_setzero_pd();
+  size_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const __m256d algebraic = add(add(mul(tx, _mm256_loadu_pd(m.nx + i)), mul(ty, _mm256_loadu_pd(m.ny + i))),
+                                  mul(tz, _mm256_loadu_pd(m.nz + i)));
+    const __m256d tp = add(add(mul(tx, _mm256_loadu_pd(m.px + i)), mul(ty, _mm256_loadu_pd(m.py + i))),
+                           mul(tz, _mm256_loadu_pd(m.pz + i)));
+    const __m256d trc = add(add(mul(tx, _mm256_loadu_pd(m.rx + i)), mul(ty, _mm256_loadu_pd(m.ry + i))),
+                            mul(tz, _mm256_loadu_pd(m.rz + i)));
+    const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
+    const __m256d inside =
+        _mm256_and_pd(_mm256_cmp_pd(_mm256_loadu_pd(m.facing + i), zero, _CMP_GT_OQ),
+                      _mm256_cmp_pd(mul(algebraic, algebraic), mul(gate2_v, norm2), _CMP_LT_OQ));
+    _mm256_storeu_pd(w + i, _mm256_and_pd(inside, _mm256_div_pd(one, norm2)));
+  }
+  for (; i < n; ++i) {
+    const double algebraic = t[0] * m.nx[i] + t[1] * m.ny[i] + t[2] * m.nz[i];
+    const double tp = t[0] * m.px[i] + t[1] * m.py[i] + t[2] * m.pz[i];
+    const double trc = t[0] * m.rx[i] + t[1] * m.ry[i] + t[2] * m.rz[i];
+    const double norm2 = sampsonNorm2(tp, trc);
+    w[i] = m.facing[i] > 0.0 && algebraic * algebraic < gate2 * norm2 ? 1.0 / norm2 : 0.0;
+  }
 }
 
 __attribute__((target("avx2"))) void residualsAvx2(const MatchArrays& m, size_t n, const double* t, double* r2) {
   residualsBody(n, t, m.px, m.py, m.pz, m.rx, m.ry, m.rz, m.nx, m.ny, m.nz, r2);
 }
-
-__attribute__((target("avx2"))) inline __m256d add(__m256d x, __m256d y) { return _mm256_add_pd(x, y); }
-__attribute__((target("avx2"))) inline __m256d sub(__m256d x, __m256d y) { return _mm256_sub_pd(x, y); }
-__attribute__((target("avx2"))) inline __m256d mul(__m256d x, __m256d y) { return _mm256_mul_pd(x, y); }
 
 // Eigen's SSE2 sum of 32 doubles (a fully unrolled reduction) adds its 16 two-double packets P0..P15
 // pairwise, as a balanced tree, then the two lanes of the result. Vector k of a chunk here holds
