@@ -347,6 +347,11 @@ TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
           }
           table.sumEpipolar(g[0].data(), g[1].data(), g[2].data(), g[3].data(), g[4].data(), g[5].data(),
                             subset.size(), rows.data(), t.data(), B.data(), gate, tukey, &sums[variant]);
+          if (tukey) {  // the cost alone is the same number
+            const double cost = table.tukeyCost(g[0].data(), g[1].data(), g[2].data(), g[3].data(), g[4].data(),
+                                                g[5].data(), subset.size(), rows.data(), t.data(), gate);
+            EXPECT_EQ(std::memcmp(&cost, &sums[variant].cost, sizeof(double)), 0) << "variant " << variant;
+          }
         }
         EXPECT_EQ(std::memcmp(sums[0].a, sums[1].a, sizeof(sums[0].a)), 0) << "tukey " << tukey;
         EXPECT_EQ(std::memcmp(sums[0].g, sums[1].g, sizeof(sums[0].g)), 0) << "tukey " << tukey;

@@ -147,8 +147,30 @@ void sumEpipolarBaseline(const double* gpx, const double* gpy, const double* gpz
   }
 }
 
-const PassTable kBaseline = {rotateBaseline, countBaseline, weightsBaseline, residualsBaseline, sumEpipolarBaseline,
-                             false};
+double tukeyCostBaseline(const double* gpx, const double* gpy, const double* gpz, const double* gcx, const double* gcy,
+                         const double* gcz, size_t count, const double* R_, const double* t, double gate) {
+  using Chunk = Eigen::Array<double, kChunk, 1>;
+  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(R_);
+  const double tx = t[0], ty = t[1], tz = t[2];
+  double cost = 0.0;
+  for (size_t start = 0; start < count; start += kChunk) {
+    const Eigen::Map<const Chunk> px(gpx + start), py(gpy + start), pz(gpz + start);
+    const Eigen::Map<const Chunk> cx(gcx + start), cy(gcy + start), cz(gcz + start);
+    const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
+    const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
+    const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
+    const Chunk nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
+    const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
+    const Chunk scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
+    const Chunk r = (tx * nx + ty * ny + tz * nz) * scale;
+    const Chunk u2 = (r * (1.0 / gate)).square();
+    cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).sum();
+  }
+  return cost;
+}
+
+const PassTable kBaseline = {rotateBaseline,      countBaseline,     weightsBaseline, residualsBaseline,
+                             sumEpipolarBaseline, tukeyCostBaseline, false};
 
 #ifdef VG_MATCH_PASSES_AVX2
 
@@ -297,7 +319,46 @@ __attribute__((target("avx2"))) void sumEpipolarAvx2(const double* gpx, const do
   }
 }
 
-const PassTable kAvx2 = {rotateAvx2, countAvx2, weightsAvx2, residualsAvx2, sumEpipolarAvx2, true};
+// tukeyCostBaseline four matches per instruction (the first part of sumEpipolarAvx2).
+__attribute__((target("avx2"))) double tukeyCostAvx2(const double* gpx, const double* gpy, const double* gpz,
+                                                     const double* gcx, const double* gcy, const double* gcz,
+                                                     size_t count, const double* R, const double* t, double gate) {
+  using Chunk = Eigen::Array<double, kChunk, 1>;
+  const __m256d r00 = _mm256_set1_pd(R[0]), r01 = _mm256_set1_pd(R[1]), r02 = _mm256_set1_pd(R[2]);
+  const __m256d r10 = _mm256_set1_pd(R[3]), r11 = _mm256_set1_pd(R[4]), r12 = _mm256_set1_pd(R[5]);
+  const __m256d r20 = _mm256_set1_pd(R[6]), r21 = _mm256_set1_pd(R[7]), r22 = _mm256_set1_pd(R[8]);
+  const __m256d tx = _mm256_set1_pd(t[0]), ty = _mm256_set1_pd(t[1]), tz = _mm256_set1_pd(t[2]);
+  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const __m256d inverse_gate = _mm256_set1_pd(1.0 / gate);
+  double cost = 0.0;
+  for (size_t start = 0; start < count; start += kChunk) {
+    Chunk u2_chunk;
+    for (int k = 0; k < 8; ++k) {
+      const size_t at = start + 4 * k;
+      const __m256d px = _mm256_loadu_pd(gpx + at), py = _mm256_loadu_pd(gpy + at), pz = _mm256_loadu_pd(gpz + at);
+      const __m256d cx = _mm256_loadu_pd(gcx + at), cy = _mm256_loadu_pd(gcy + at), cz = _mm256_loadu_pd(gcz + at);
+      const __m256d rx = add(add(mul(r00, cx), mul(r01, cy)), mul(r02, cz));
+      const __m256d ry = add(add(mul(r10, cx), mul(r11, cy)), mul(r12, cz));
+      const __m256d rz = add(add(mul(r20, cx), mul(r21, cy)), mul(r22, cz));
+      const __m256d nx = sub(mul(py, rz), mul(pz, ry)), ny = sub(mul(pz, rx), mul(px, rz));
+      const __m256d nz = sub(mul(px, ry), mul(py, rx));
+      const __m256d tp = add(add(mul(tx, px), mul(ty, py)), mul(tz, pz));
+      const __m256d trc = add(add(mul(tx, rx), mul(ty, ry)), mul(tz, rz));
+      const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
+      const __m256d scale = _mm256_div_pd(one, _mm256_sqrt_pd(norm2));
+      const __m256d r = mul(add(add(mul(tx, nx), mul(ty, ny)), mul(tz, nz)), scale);
+      const __m256d ru = mul(r, inverse_gate);
+      const __m256d u2 = mul(ru, ru);
+      _mm_storeu_pd(u2_chunk.data() + 2 * k, _mm256_castpd256_pd128(u2));
+      _mm_storeu_pd(u2_chunk.data() + 2 * k + 16, _mm256_extractf128_pd(u2, 1));
+    }
+    const Chunk u2 = u2_chunk;
+    cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).sum();
+  }
+  return cost;
+}
+
+const PassTable kAvx2 = {rotateAvx2, countAvx2, weightsAvx2, residualsAvx2, sumEpipolarAvx2, tukeyCostAvx2, true};
 
 #endif
 

@@ -62,6 +62,10 @@ struct PassTable {
   void (*sumEpipolar)(const double* gpx, const double* gpy, const double* gpz, const double* gcx, const double* gcy,
                       const double* gcz, size_t count, const double* R, const double* t, const double* B, double gate,
                       bool tukey, EpipolarSums* sums);
+  /// The Tukey cost sumEpipolar adds up (tukey), alone: for a step whose normal equations are not
+  /// needed. The same value, summed in the same order.
+  double (*tukeyCost)(const double* gpx, const double* gpy, const double* gpz, const double* gcx, const double* gcy,
+                      const double* gcz, size_t count, const double* R, const double* t, double gate);
   /// How sumEpipolar wants the gathered matches laid out (see gatheredPosition).
   bool interleaved;
 };

@@ -290,6 +290,14 @@ void accumulateEpipolar(const FrameMatches& m, const Eigen::Matrix3d& R, const E
   ne->used = sums.used;
 }
 
+// The Tukey cost accumulateEpipolar gives at (R, t), alone.
+double tukeyCost(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate) {
+  const FrameMatches::Scratch& s = m.scratch;
+  const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
+  return passes::passes().tukeyCost(s.gpx.data(), s.gpy.data(), s.gpz.data(), s.gcx.data(), s.gcy.data(),
+                                    s.gcz.data(), s.gathered, rows, t.data(), gate);
+}
+
 RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3d t, double threshold,
                               int iterations, bool warm) {
   const size_t n = m.size();
@@ -331,12 +339,18 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
       if (!step.allFinite()) break;
       const Eigen::Matrix3d R_new = R * so3Exp(step.head<3>());
       const Eigen::Vector3d t_new = (t + here.B * step.tail<2>()).normalized();
-      accumulateEpipolar(m, R_new, t_new, gate_width, Weighting::kTukey, &there);
       // Converged once the rotation moves by less than kConvergedRotation. A rejected step that
       // small ends the round as well: near the minimum the cost with the Sampson scale held fixed
       // and the true cost differ by more than such a step gains, so further, more damped steps
       // are rejected in turn (each a pass over the matches) and would move the rotation less still.
       const bool converged = step.head<3>().norm() < kConvergedRotation;
+      // The round's last step is only accepted or rejected: its cost decides, the normal
+      // equations at its end would not be used (the next round starts from its own).
+      if (converged || it + 1 == round_iterations) {
+        there.cost = tukeyCost(m, R_new, t_new, gate_width);
+      } else {
+        accumulateEpipolar(m, R_new, t_new, gate_width, Weighting::kTukey, &there);
+      }
       if (there.cost <= here.cost) {
         R = R_new;
         t = t_new;
