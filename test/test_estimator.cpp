@@ -241,6 +241,22 @@ TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {
   EXPECT_FALSE(a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) << "the seed changes the triples";
 }
 
+TEST(TripleDraw, BatchSameAsOneAtATime) {
+  for (uint64_t seed : {0ull, 42ull, (1ull << 40) + 7}) {
+    for (uint32_t n : {3u, 4u, 1000u, 100000u}) {
+      for (uint32_t first : {0u, 5u, 123456u}) {
+        uint32_t batch[203][3];
+        vg::hyp::drawTriples(seed, first, 203, n, batch);
+        for (uint32_t k = 0; k < 203; ++k) {
+          uint32_t one[3];
+          vg::hyp::drawTriple(seed, first + k, n, one);
+          for (int i = 0; i < 3; ++i) ASSERT_EQ(batch[k][i], one[i]) << seed << " " << n << " " << first + k;
+        }
+      }
+    }
+  }
+}
+
 TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
   const Scene s = makeScene(vg::rotationFromYawPitchRoll(2 * kDeg, 0.3 * kDeg, -0.2 * kDeg), Vector3d::Zero(), 300,
                             0.5e-3, 0.3, 5, 50, 11);

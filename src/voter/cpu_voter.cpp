@@ -50,6 +50,7 @@ class CpuVoter : public HypothesisVoter {
     // same rotations as one at a time) and binned in their order, so the per-cell sums add up in
     // the same order either way.
     constexpr int kChunk = 128;
+    uint32_t triples[kChunk][3];
     hyp::Vec3f prev[kChunk][3], cur[kChunk][3];
     int32_t solved[kChunk];
     hyp::Mat3f rotations[kChunk];
@@ -60,8 +61,13 @@ class CpuVoter : public HypothesisVoter {
     int32_t best = 0;
     for (uint32_t first = 0; first < request.hypotheses; first += kChunk) {
       const int count = static_cast<int>(std::min<uint32_t>(kChunk, request.hypotheses - first));
-      for (int k = 0; k < count; ++k)
-        hyp::loadTriple(request.prev, request.cur, request.matches, request.seed, first + k, prev[k], cur[k]);
+      hyp::drawTriples(request.seed, first, count, request.matches, triples);
+      for (int k = 0; k < count; ++k) {
+        for (int i = 0; i < 3; ++i) {
+          prev[k][i] = request.prev[triples[k][i]];
+          cur[k][i] = request.cur[triples[k][i]];
+        }
+      }
       hyp::solveTriples(prev, cur, count, request.triple, solved, rotations);
       for (int k = 0; k < count; ++k) {
         const uint32_t h = first + k;

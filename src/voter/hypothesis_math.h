@@ -83,25 +83,33 @@ VG_HD uint32_t scaleToRange(uint32_t word, uint32_t n) {
   return static_cast<uint32_t>((static_cast<uint64_t>(word) * n) >> 32);
 }
 
-/// Draws three distinct match indices in [0, n) for hypothesis `hypothesis` of a frame.
-/// Requires n >= 3. Deterministic in (seed, hypothesis, n).
-VG_HD void drawTriple(uint64_t seed, uint32_t hypothesis, uint32_t n, uint32_t idx[3]) {
-  const uint32_t counter[4] = {hypothesis, 0u, 0x76697375u /* "visu" */, 0x6779726fu /* "gyro" */};
-  uint32_t r[4];
-  philox4x32(counter, static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32), r);
+/// Three distinct indices in [0, n) from three random words (drawTriple's second half).
+VG_HD void drawFromWords(uint32_t r0, uint32_t r1, uint32_t r2, uint32_t n, uint32_t idx[3]) {
   // Sampling without replacement by skipping the indices already taken keeps the draw branch-light
   // and loop-free, which matters for warp divergence on the GPU.
-  uint32_t a = scaleToRange(r[0], n);
-  uint32_t b = scaleToRange(r[1], n - 1);
+  uint32_t a = scaleToRange(r0, n);
+  uint32_t b = scaleToRange(r1, n - 1);
   if (b >= a) ++b;
   const uint32_t lo = a < b ? a : b;
   const uint32_t hi = a < b ? b : a;
-  uint32_t c = scaleToRange(r[2], n - 2);
+  uint32_t c = scaleToRange(r2, n - 2);
   if (c >= lo) ++c;
   if (c >= hi) ++c;
   idx[0] = a;
   idx[1] = b;
   idx[2] = c;
+}
+
+/// Counter words of hypothesis h's Philox block (after the hypothesis index: "visu", "gyro").
+constexpr uint32_t kTripleCounterWord2 = 0x76697375u, kTripleCounterWord3 = 0x6779726fu;
+
+/// Draws three distinct match indices in [0, n) for hypothesis `hypothesis` of a frame.
+/// Requires n >= 3. Deterministic in (seed, hypothesis, n).
+VG_HD void drawTriple(uint64_t seed, uint32_t hypothesis, uint32_t n, uint32_t idx[3]) {
+  const uint32_t counter[4] = {hypothesis, 0u, kTripleCounterWord2, kTripleCounterWord3};
+  uint32_t r[4];
+  philox4x32(counter, static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32), r);
+  drawFromWords(r[0], r[1], r[2], n, idx);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -232,6 +232,66 @@ void fillLanes(const Vec3f (*prev)[3], const Vec3f (*cur)[3], const int* index, 
 
 #undef VG_AVX
 
+// High (hi) and low (lo) 32 bits of the 64-bit products m * c of the lanes: those of the even lanes
+// come from one multiply, those of the odd lanes from a second on the lanes shifted down.
+__attribute__((target("avx2"))) inline void multiply(__m256i m, __m256i c, __m256i* hi, __m256i* lo) {
+  const __m256i even = _mm256_mul_epu32(m, c);
+  const __m256i odd = _mm256_mul_epu32(_mm256_srli_epi64(m, 32), _mm256_srli_epi64(c, 32));
+  *lo = _mm256_blend_epi32(even, _mm256_slli_epi64(odd, 32), 0xAA);
+  *hi = _mm256_blend_epi32(_mm256_srli_epi64(even, 32), odd, 0xAA);
+}
+
+// Philox4x32-10 (philox4x32) for eight counters at once; the first three words of each block.
+__attribute__((target("avx2"))) void philoxAvx2(__m256i c0, __m256i c1, __m256i c2, __m256i c3, uint32_t key_lo,
+                                                uint32_t key_hi, __m256i out[3]) {
+  const __m256i m0 = _mm256_set1_epi32(static_cast<int>(0xD2511F53u));
+  const __m256i m1 = _mm256_set1_epi32(static_cast<int>(0xCD9E8D57u));
+  __m256i k0 = _mm256_set1_epi32(static_cast<int>(key_lo)), k1 = _mm256_set1_epi32(static_cast<int>(key_hi));
+  const __m256i step0 = _mm256_set1_epi32(static_cast<int>(0x9E3779B9u));
+  const __m256i step1 = _mm256_set1_epi32(static_cast<int>(0xBB67AE85u));
+  for (int round = 0; round < 10; ++round) {
+    __m256i hi0, lo0, hi1, lo1;
+    multiply(m0, c0, &hi0, &lo0);
+    multiply(m1, c2, &hi1, &lo1);
+    c0 = _mm256_xor_si256(_mm256_xor_si256(hi1, c1), k0);
+    c1 = lo1;
+    c2 = _mm256_xor_si256(_mm256_xor_si256(hi0, c3), k1);
+    c3 = lo0;
+    k0 = _mm256_add_epi32(k0, step0);
+    k1 = _mm256_add_epi32(k1, step1);
+  }
+  out[0] = c0;
+  out[1] = c1;
+  out[2] = c2;
+}
+
+// drawTriples for whole batches of eight; returns how many it drew.
+__attribute__((target("avx2"))) int drawBatchesAvx2(uint64_t seed, uint32_t first, int count, uint32_t n,
+                                                    uint32_t (*idx)[3]) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i zero = _mm256_setzero_si256();
+  const __m256i word2 = _mm256_set1_epi32(static_cast<int>(kTripleCounterWord2));
+  const __m256i word3 = _mm256_set1_epi32(static_cast<int>(kTripleCounterWord3));
+  int k = 0;
+  for (; k + kTripleBatch <= count; k += kTripleBatch) {
+    __m256i r[3];
+    const __m256i counter = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(first + k)), lane);
+    philoxAvx2(counter, zero, word2, word3, static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32), r);
+    uint32_t words[3][kTripleBatch];
+    for (int w = 0; w < 3; ++w) _mm256_storeu_si256(reinterpret_cast<__m256i*>(words[w]), r[w]);
+    for (int l = 0; l < kTripleBatch; ++l) drawFromWords(words[0][l], words[1][l], words[2][l], n, idx[k + l]);
+  }
+  return k;
+}
+
+bool drawBatchAvailable() {
+  static const bool available = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return available;
+}
+
 }  // namespace
 
 bool tripleBatchAvailable() {
@@ -240,6 +300,11 @@ bool tripleBatchAvailable() {
     return __builtin_cpu_supports("avx") != 0;
   }();
   return available;
+}
+
+void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t (*idx)[3]) {
+  const int drawn = drawBatchAvailable() ? drawBatchesAvx2(seed, first, count, n, idx) : 0;
+  for (int k = drawn; k < count; ++k) drawTriple(seed, first + static_cast<uint32_t>(k), n, idx[k]);
 }
 
 void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
@@ -287,6 +352,10 @@ void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, cons
 #else  // no x86-64 SIMD
 
 bool tripleBatchAvailable() { return false; }
+
+void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t (*idx)[3]) {
+  for (int k = 0; k < count; ++k) drawTriple(seed, first + static_cast<uint32_t>(k), n, idx[k]);
+}
 
 void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
                   int32_t* status, Mat3f* R) {

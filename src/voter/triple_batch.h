@@ -17,6 +17,10 @@ constexpr int kTripleBatch = 8;
 /// solves one triple at a time.
 bool tripleBatchAvailable();
 
+/// drawTriple for hypotheses first .. first + count - 1 (idx[k]: hypothesis first + k), eight at a
+/// time in SIMD lanes where the CPU can (AVX2); the same indices as drawTriple.
+void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t (*idx)[3]);
+
 /// solveTripleRotation for `count` triples, in SIMD lanes where the CPU can: prev[k] and cur[k] are
 /// triple k, status[k] and R[k] its results (R[k] set only when status[k] is kTripleOk). Every
 /// triple goes through exactly the scalar function's floating-point operations, so the results
