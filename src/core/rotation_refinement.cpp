@@ -241,16 +241,19 @@ void gatherMatches(FrameMatches& m, const double* keep, size_t stride) {
     to[a]->resize(capacity);
     out[a] = to[a]->data();
   }
+  // Without branches (whether a match is kept is close to a coin toss in the wide first rounds):
+  // each match is written at the next place, which only a kept one then takes; the place a last
+  // dropped match took is padding, zeroed below.
   size_t count = 0;
   for (size_t i = 0; i < n; i += stride) {
-    if (keep != nullptr && keep[i] == 0.0) continue;
-    const size_t at = passes::gatheredPosition(count++, interleaved);
+    const size_t at = passes::gatheredPosition(count, interleaved);
     out[0][at] = m.px[i];
     out[1][at] = m.py[i];
     out[2][at] = m.pz[i];
     out[3][at] = m.cx[i];
     out[4][at] = m.cy[i];
     out[5][at] = m.cz[i];
+    count += keep == nullptr || keep[i] != 0.0;
   }
   const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
   for (size_t k = count; k < padded; ++k) {
