@@ -336,6 +336,9 @@ TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
       base.gateWeights(arrays, n, t.data(), gate * gate, base_weights.data());
       avx2->gateWeights(arrays, n, t.data(), gate * gate, avx2_weights.data());
       ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      base.huberWeights(arrays, n, gate * gate, 0.5 * gate, base_weights.data());
+      avx2->huberWeights(arrays, n, gate * gate, 0.5 * gate, avx2_weights.data());
+      ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
       for (const double* direction : {t.data(), static_cast<const double*>(nullptr)}) {
         base.residuals2(arrays, n, direction, base_weights.data());
         avx2->residuals2(arrays, n, direction, avx2_weights.data());

@@ -51,6 +51,9 @@ struct PassTable {
   /// w[i] = 1 / sampsonNorm2(t.p, t.r) for the usable matches within the gate as countWithinGate
   /// tests it, 0 for the others; i < n.
   void (*gateWeights)(const MatchArrays& m, size_t n, const double* t, double gate2, double* w);
+  /// w[i] = Huber weight (1 up to k, then k / |n|) of the usable matches with |n|^2 < gate2, 0 for
+  /// the others; i < n.
+  void (*huberWeights)(const MatchArrays& m, size_t n, double gate2, double k, double* w);
   /// r2[i] = (t.n)^2 / sampsonNorm2(t.p, t.r), the squared angular epipolar residual, or with
   /// t == nullptr |n|^2, the squared pure-rotation residual; i < n.
   void (*residuals2)(const MatchArrays& m, size_t n, const double* t, double* r2);

@@ -39,11 +39,6 @@ passes::MatchArrays matchArrays(const FrameMatches& m) {
           s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data()};
 }
 
-double huberWeight(double r, double k) {
-  const double a = std::abs(r);
-  return a <= k ? 1.0 : k / a;
-}
-
 // R b_cur, b_prev x R b_cur and the hemisphere test of every match into the scratch arrays: the
 // one pass per rotation that the counting and gating loops then read. Matches whose bearings
 // point into opposite half-spaces after the rotation cannot be one point. A rotation equal to the
@@ -154,22 +149,31 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
 
 RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double threshold, int iterations) {
   const size_t n = m.size();
-  const FrameMatches::Scratch& s = m.scratch;
+  FrameMatches::Scratch& s = m.scratch;
   RefinedRotation out;
   for (int it = 0; it < std::max(1, iterations); ++it) {
     rotateAll(m, R);
     const double gate_width = it > 0 ? adaptiveGate(m, nullptr, threshold) : 1.6 * threshold;
     const double gate2 = (kRotationGateScale * gate_width) * (kRotationGateScale * gate_width);
-    // Weighted Kabsch: the closed-form minimiser of sum w |b_prev - R b_cur|^2.
-    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    // Weighted Kabsch: the closed-form minimiser of sum w |b_prev - R b_cur|^2. The Huber weights
+    // (zero outside the gate, where they then add exact zeros) come from one vectorised pass; the
+    // sums run in index order.
+    s.weights.resize(n);
+    passes::passes().huberWeights(matchArrays(m), n, gate2, 0.5 * gate_width, s.weights.data());
+    double h[3][3] = {};
     int used = 0;
     for (size_t i = 0; i < n; ++i) {
-      const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-      if (!usable(s, i) || r2 >= gate2) continue;
-      const double w = huberWeight(std::sqrt(r2), 0.5 * gate_width);
-      H.noalias() += (w * m.current(i)) * m.previous(i).transpose();
-      ++used;
+      const double w = s.weights[i];
+      const double wc[3] = {w * m.cx[i], w * m.cy[i], w * m.cz[i]};
+      for (int r = 0; r < 3; ++r) {
+        h[r][0] += wc[r] * m.px[i];
+        h[r][1] += wc[r] * m.py[i];
+        h[r][2] += wc[r] * m.pz[i];
+      }
+      used += w != 0.0;
     }
+    Eigen::Matrix3d H;
+    H << h[0][0], h[0][1], h[0][2], h[1][0], h[1][1], h[1][2], h[2][0], h[2][1], h[2][2];
     if (used < 3) break;
     Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
     Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
