@@ -175,46 +175,50 @@ TEST(TripleSolver, RejectsDegenerateTriples) {
 TEST(TripleSolver, BatchSameAsScalarBitForBit) {
   if (!vg::hyp::tripleBatchAvailable()) GTEST_SKIP() << "no batched triple solver on this CPU";
   // Well-conditioned, noisy, repeated, thin, mirrored and non-finite triples mixed, under every
-  // option the voter uses; a count that is not a multiple of the lanes.
+  // option the voter uses; a count that is not a multiple of the lanes. Triple k is made of
+  // bearings 3k .. 3k + 2 of the lists, drawn in a shuffled order.
   std::mt19937 rng(21);
   std::normal_distribution<double> noise(0.0, 0.01);
   std::uniform_real_distribution<double> angle(-0.3, 0.3);
-  constexpr int kCount = 1001;
-  std::vector<std::array<vg::hyp::Vec3f, 3>> prev(kCount), cur(kCount);
+  constexpr uint32_t kCount = 1001;
+  std::vector<vg::hyp::Vec3f> prev(3 * kCount), cur(3 * kCount);
+  std::vector<std::array<uint32_t, 3>> idx(kCount);
   int solved = 0;
   for (int trial = 0; trial < 24; ++trial) {
     vg::hyp::TripleOptions opt = defaultTripleOptions(trial % 2 == 1);
     if (trial % 3 == 0) opt.max_angle_change = static_cast<float>(0.3 * kDeg);
-    for (int k = 0; k < kCount; ++k) {
+    for (uint32_t k = 0; k < kCount; ++k) {
       const Matrix3d R = vg::rotationFromYawPitchRoll(angle(rng), angle(rng), angle(rng));
       const int kind = (trial + k) % 7;
-      for (int i = 0; i < 3; ++i) {
+      for (uint32_t i = 0; i < 3; ++i) {
         Vector3d c = randomBearingInView(rng);
         if (kind == 1) c = randomBearingInView(rng, 0.01, 0.01);  // thin
         Vector3d p = R * c;
         if (kind == 2) p = (p + Vector3d(noise(rng), noise(rng), 0.0)).normalized();
         if (kind == 3) p.x() = -p.x();  // mirrored
-        cur[k][i] = toF(c);
-        prev[k][i] = toF(p);
+        cur[3 * k + i] = toF(c);
+        prev[3 * k + i] = toF(p);
       }
-      if (kind == 4) cur[k][2] = cur[k][0];  // repeated
-      if (kind == 5) prev[k][1] = vg::hyp::make3(NAN, 0.f, 1.f);
+      if (kind == 4) cur[3 * k + 2] = cur[3 * k];  // repeated
+      if (kind == 5) prev[3 * k + 1] = vg::hyp::make3(NAN, 0.f, 1.f);
+      idx[k] = {3 * k + 2, 3 * k, 3 * k + 1};
     }
     std::vector<int32_t> status(kCount);
     std::vector<vg::hyp::Mat3f> batch(kCount);
-    vg::hyp::solveTriples(reinterpret_cast<const vg::hyp::Vec3f(*)[3]>(prev.data()),
-                          reinterpret_cast<const vg::hyp::Vec3f(*)[3]>(cur.data()), kCount, opt, status.data(),
-                          batch.data());
-    for (int k = 0; k < kCount; ++k) {
+    vg::hyp::solveTriples(prev.data(), cur.data(), reinterpret_cast<const uint32_t(*)[3]>(idx.data()), kCount, opt,
+                          status.data(), batch.data());
+    for (uint32_t k = 0; k < kCount; ++k) {
+      const vg::hyp::Vec3f p[3] = {prev[idx[k][0]], prev[idx[k][1]], prev[idx[k][2]]};
+      const vg::hyp::Vec3f c[3] = {cur[idx[k][0]], cur[idx[k][1]], cur[idx[k][2]]};
       vg::hyp::Mat3f one;
-      const int32_t expected = vg::hyp::solveTripleRotation(prev[k].data(), cur[k].data(), opt, &one);
+      const int32_t expected = vg::hyp::solveTripleRotation(p, c, opt, &one);
       ASSERT_EQ(status[k], expected) << "trial " << trial << " triple " << k;
       if (expected != vg::hyp::kTripleOk) continue;
       ++solved;
       ASSERT_EQ(std::memcmp(one.m, batch[k].m, sizeof(one.m)), 0) << "trial " << trial << " triple " << k;
     }
   }
-  EXPECT_GT(solved, 24 * kCount / 4);
+  EXPECT_GT(solved, 24 * static_cast<int>(kCount) / 4);
 }
 
 TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {

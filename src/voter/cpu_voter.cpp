@@ -51,7 +51,6 @@ class CpuVoter : public HypothesisVoter {
     // the same order either way.
     constexpr int kChunk = 128;
     uint32_t triples[kChunk][3];
-    hyp::Vec3f prev[kChunk][3], cur[kChunk][3];
     int32_t solved[kChunk];
     hyp::Mat3f rotations[kChunk];
     hyp::HypothesisRecord record;
@@ -62,13 +61,7 @@ class CpuVoter : public HypothesisVoter {
     for (uint32_t first = 0; first < request.hypotheses; first += kChunk) {
       const int count = static_cast<int>(std::min<uint32_t>(kChunk, request.hypotheses - first));
       hyp::drawTriples(request.seed, first, count, request.matches, triples);
-      for (int k = 0; k < count; ++k) {
-        for (int i = 0; i < 3; ++i) {
-          prev[k][i] = request.prev[triples[k][i]];
-          cur[k][i] = request.cur[triples[k][i]];
-        }
-      }
-      hyp::solveTriples(prev, cur, count, request.triple, solved, rotations);
+      hyp::solveTriples(request.prev, request.cur, triples, count, request.triple, solved, rotations);
       for (int k = 0; k < count; ++k) {
         const uint32_t h = first + k;
         const int32_t status = hyp::binHypothesis(solved[k], rotations[k], request.grid, &record);

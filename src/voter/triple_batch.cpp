@@ -16,6 +16,20 @@
 namespace visual_gyro {
 namespace hyp {
 
+namespace {
+
+// The scalar solver, triple by triple.
+void solveOneByOne(const Vec3f* prev, const Vec3f* cur, const uint32_t (*idx)[3], int count, const TripleOptions& opt,
+                   int32_t* status, Mat3f* R) {
+  for (int k = 0; k < count; ++k) {
+    const Vec3f p[3] = {prev[idx[k][0]], prev[idx[k][1]], prev[idx[k][2]]};
+    const Vec3f c[3] = {cur[idx[k][0]], cur[idx[k][1]], cur[idx[k][2]]};
+    status[k] = solveTripleRotation(p, c, opt, &R[k]);
+  }
+}
+
+}  // namespace
+
 #ifdef VG_TRIPLE_BATCH
 
 namespace {
@@ -71,24 +85,44 @@ VG_AVX V8 select(F8 mask, const V8& a, const V8& b) {
   return V8{select(mask, a.x, b.x), select(mask, a.y, b.y), select(mask, a.z, b.z)};
 }
 
-// Lanes of triples[k][i], k = 0..7.
-VG_AVX V8 load(const Vec3f triples[kTripleBatch][3], int i) {
-  float x[kTripleBatch], y[kTripleBatch], z[kTripleBatch];
+// The bearings of eight triples, lane by lane: bearing i of lane k is (x[i][k], y[i][k], z[i][k]).
+struct TripleLanes {
+  alignas(32) float x[3][kTripleBatch];
+  alignas(32) float y[3][kTripleBatch];
+  alignas(32) float z[3][kTripleBatch];
+};
+
+// Fills the lanes with the triples of hypotheses which[0..count) (count <= kTripleBatch), the
+// remaining lanes with copies of the first, whose results are dropped.
+void fillLanes(const Vec3f* bearings, const uint32_t (*idx)[3], const int* which, int count, TripleLanes* lanes) {
   for (int k = 0; k < kTripleBatch; ++k) {
-    x[k] = triples[k][i].x;
-    y[k] = triples[k][i].y;
-    z[k] = triples[k][i].z;
+    const uint32_t* triple = idx[which[k < count ? k : 0]];
+    for (int i = 0; i < 3; ++i) {
+      const Vec3f& b = bearings[triple[i]];
+      lanes->x[i][k] = b.x;
+      lanes->y[i][k] = b.y;
+      lanes->z[i][k] = b.z;
+    }
   }
-  return V8{F8{_mm256_loadu_ps(x)}, F8{_mm256_loadu_ps(y)}, F8{_mm256_loadu_ps(z)}};
 }
 
-// Gives the lanes of `open` in `reject` status `why` and closes them; false when none is left open.
-VG_AVX bool reject(F8 fails, int32_t why, F8* open, int32_t status[kTripleBatch]) {
-  const int newly = bits(*open & fails);
-  for (int k = 0; k < kTripleBatch; ++k)
-    if (newly & (1 << k)) status[k] = why;
+// Bearing i of the lanes.
+VG_AVX V8 load(const TripleLanes& lanes, int i) {
+  return V8{F8{_mm256_load_ps(lanes.x[i])}, F8{_mm256_load_ps(lanes.y[i])}, F8{_mm256_load_ps(lanes.z[i])}};
+}
+
+// Gives the lanes of `open` that `fails` status `why` (in the lanes of *status) and closes them;
+// false when none is left open.
+VG_AVX bool reject(F8 fails, int32_t why, F8* open, F8* status) {
+  const F8 newly = *open & fails;
+  *status = select(newly, F8{_mm256_castsi256_ps(_mm256_set1_epi32(why))}, *status);
   *open = andNot(fails, *open);
   return bits(*open) != 0;
+}
+
+// The lanes' statuses into status[].
+VG_AVX void storeStatus(F8 lanes, int32_t status[kTripleBatch]) {
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(status), _mm256_castps_si256(lanes.v));
 }
 
 VG_AVX void swapTriplets(F8 swap, F8* sa, V8* ha, V8* va, F8* sb, V8* hb, V8* vb) {
@@ -125,37 +159,41 @@ VG_AVX void crossCovariance(const V8 pr[3], const V8 cu[3], const TripleOptions&
 
 // The tests solveTripleRotation makes before its SVD, for the lanes' triples: the status of each
 // rejected lane is written, and the mask of the lanes that pass (bit k: lane k) returned.
-__attribute__((target("avx"))) int screenAvx(const Vec3f prev[kTripleBatch][3], const Vec3f cur[kTripleBatch][3],
-                                              const TripleOptions& opt, int32_t status[kTripleBatch]) {
+__attribute__((target("avx"))) int screenAvx(const TripleLanes& prev, const TripleLanes& cur, const TripleOptions& opt,
+                                              int32_t status[kTripleBatch]) {
   const V8 pr[3] = {load(prev, 0), load(prev, 1), load(prev, 2)};
   const V8 cu[3] = {load(cur, 0), load(cur, 1), load(cur, 2)};
   F8 open = F8{_mm256_castsi256_ps(_mm256_set1_epi32(-1))};
+  F8 why = broadcast(0.f);  // kTripleOk
   const V8 dp01 = pr[1] - pr[0], dp02 = pr[2] - pr[0], dp12 = pr[2] - pr[1];
   const V8 dc01 = cu[1] - cu[0], dc02 = cu[2] - cu[0], dc12 = cu[2] - cu[1];
   const F8 lp01 = norm(dp01), lp02 = norm(dp02), lp12 = norm(dp12);
   const F8 lc01 = norm(dc01), lc02 = norm(dc02), lc12 = norm(dc12);
   const F8 shortest = fmin8(fmin8(lp01, lp02), fmin8(lp12, fmin8(lc01, fmin8(lc02, lc12))));
-  if (!reject(notGreaterEqual(shortest, broadcast(opt.min_separation)), kTripleRepeated, &open, status)) return 0;
-  const F8 area = broadcast(0.5f) * fmin8(norm(cross(dp01, dp02)), norm(cross(dc01, dc02)));
-  if (!reject(notGreaterEqual(area, broadcast(opt.min_triangle_area)), kTripleCollinear, &open, status)) return 0;
-  if (opt.max_angle_change > 0.f) {
-    const F8 change = fmax8(abs8(lp01 - lc01), fmax8(abs8(lp02 - lc02), abs8(lp12 - lc12)));
-    if (!reject(greater(change, broadcast(opt.max_angle_change)), kTripleInconsistent, &open, status)) return 0;
+  bool left = reject(notGreaterEqual(shortest, broadcast(opt.min_separation)), kTripleRepeated, &open, &why);
+  if (left) {
+    const F8 area = broadcast(0.5f) * fmin8(norm(cross(dp01, dp02)), norm(cross(dc01, dc02)));
+    left = reject(notGreaterEqual(area, broadcast(opt.min_triangle_area)), kTripleCollinear, &open, &why);
   }
-  if (!opt.centroid_subtraction) {
+  if (left && opt.max_angle_change > 0.f) {
+    const F8 change = fmax8(abs8(lp01 - lc01), fmax8(abs8(lp02 - lc02), abs8(lp12 - lc12)));
+    left = reject(greater(change, broadcast(opt.max_angle_change)), kTripleInconsistent, &open, &why);
+  }
+  if (left && !opt.centroid_subtraction) {
     V8 h[3];
     crossCovariance(pr, cu, opt, h);
     const F8 detH = dot(h[0], cross(h[1], h[2]));
-    if (!reject(notGreater(detH, broadcast(0.f)), kTripleReflection, &open, status)) return 0;
+    reject(notGreater(detH, broadcast(0.f)), kTripleReflection, &open, &why);
   }
+  storeStatus(why, status);
   return bits(open);
 }
 
 // The rest of solveTripleRotation for lanes that passed screenAvx: one-sided Jacobi, the ordering
 // of the singular values, the rank test and R.
-__attribute__((target("avx"))) void solveScreenedAvx(const Vec3f prev[kTripleBatch][3],
-                                                      const Vec3f cur[kTripleBatch][3], const TripleOptions& opt,
-                                                      int32_t status[kTripleBatch], Mat3f R[kTripleBatch]) {
+__attribute__((target("avx"))) void solveScreenedAvx(const TripleLanes& prev, const TripleLanes& cur,
+                                                      const TripleOptions& opt, int32_t status[kTripleBatch],
+                                                      Mat3f R[kTripleBatch]) {
   const V8 pr[3] = {load(prev, 0), load(prev, 1), load(prev, 2)};
   const V8 cu[3] = {load(cur, 0), load(cur, 1), load(cur, 2)};
   F8 open = F8{_mm256_castsi256_ps(_mm256_set1_epi32(-1))};
@@ -195,7 +233,10 @@ __attribute__((target("avx"))) void solveScreenedAvx(const Vec3f prev[kTripleBat
   swapTriplets(greater(s2, s0), &s0, &h0, &v0, &s2, &h2, &v2);
   swapTriplets(greater(s2, s1), &s1, &h1, &v1, &s2, &h2, &v2);
   const F8 degenerate = notGreater(s1, tiny * s0) | notGreater(s0, zero);
-  if (!reject(degenerate, kTripleCollinear, &open, status)) return;
+  F8 why = broadcast(0.f);  // kTripleOk
+  const bool any_left = reject(degenerate, kTripleCollinear, &open, &why);
+  storeStatus(why, status);
+  if (!any_left) return;
   const V8 u0 = (one / s0) * h0;
   V8 u1 = h1 - dot(u0, h1) * u0;
   u1 = (one / norm(u1)) * u1;
@@ -212,21 +253,7 @@ __attribute__((target("avx"))) void solveScreenedAvx(const Vec3f prev[kTripleBat
   const int ok = bits(open);
   for (int k = 0; k < kTripleBatch; ++k) {
     if (!(ok & (1 << k))) continue;
-    status[k] = kTripleOk;
     for (int e = 0; e < 9; ++e) R[k].m[e] = lanes[e][k];
-  }
-}
-
-// Copies triples index[0..count) of the arrays into the lanes (count <= kTripleBatch), the
-// remaining lanes with copies of the first, whose results are dropped.
-void fillLanes(const Vec3f (*prev)[3], const Vec3f (*cur)[3], const int* index, int count,
-               Vec3f lane_prev[kTripleBatch][3], Vec3f lane_cur[kTripleBatch][3]) {
-  for (int k = 0; k < kTripleBatch; ++k) {
-    const int from = index[k < count ? k : 0];
-    for (int i = 0; i < 3; ++i) {
-      lane_prev[k][i] = prev[from][i];
-      lane_cur[k][i] = cur[from][i];
-    }
   }
 }
 
@@ -307,24 +334,22 @@ void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t 
   for (int k = drawn; k < count; ++k) drawTriple(seed, first + static_cast<uint32_t>(k), n, idx[k]);
 }
 
-void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
+void solveTriples(const Vec3f* prev, const Vec3f* cur, const uint32_t (*idx)[3], int count, const TripleOptions& opt,
                   int32_t* status, Mat3f* R) {
   if (!tripleBatchAvailable()) {
-    for (int k = 0; k < count; ++k) status[k] = solveTripleRotation(prev[k], cur[k], opt, &R[k]);
+    solveOneByOne(prev, cur, idx, count, opt, status, R);
     return;
   }
   // Most triples of a narrow vote fail the cheap tests; the SVD lanes are filled with those that
   // pass, so that no lane of the expensive part is wasted on a rejected triple.
-  Vec3f screen_prev[kTripleBatch][3], screen_cur[kTripleBatch][3];
-  int32_t screen_status[kTripleBatch];
-  Vec3f solve_prev[kTripleBatch][3], solve_cur[kTripleBatch][3];
-  int32_t solve_status[kTripleBatch];
+  TripleLanes screen_prev, screen_cur, solve_prev, solve_cur;
+  int32_t screen_status[kTripleBatch], solve_status[kTripleBatch];
   Mat3f solve_R[kTripleBatch];
-  int index[kTripleBatch];
-  int passed[kTripleBatch];
+  int which[kTripleBatch], passed[kTripleBatch];
   int queued = 0;
   auto solveQueued = [&]() {
-    fillLanes(prev, cur, passed, queued, solve_prev, solve_cur);
+    fillLanes(prev, idx, passed, queued, &solve_prev);
+    fillLanes(cur, idx, passed, queued, &solve_cur);
     solveScreenedAvx(solve_prev, solve_cur, opt, solve_status, solve_R);
     for (int k = 0; k < queued; ++k) {
       status[passed[k]] = solve_status[k];
@@ -334,8 +359,9 @@ void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, cons
   };
   for (int first = 0; first < count; first += kTripleBatch) {
     const int lanes = count - first < kTripleBatch ? count - first : kTripleBatch;
-    for (int k = 0; k < lanes; ++k) index[k] = first + k;
-    fillLanes(prev, cur, index, lanes, screen_prev, screen_cur);
+    for (int k = 0; k < lanes; ++k) which[k] = first + k;
+    fillLanes(prev, idx, which, lanes, &screen_prev);
+    fillLanes(cur, idx, which, lanes, &screen_cur);
     const int pass = screenAvx(screen_prev, screen_cur, opt, screen_status);
     for (int k = 0; k < lanes; ++k) {
       if (!(pass & (1 << k))) {
@@ -357,9 +383,9 @@ void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t 
   for (int k = 0; k < count; ++k) drawTriple(seed, first + static_cast<uint32_t>(k), n, idx[k]);
 }
 
-void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
+void solveTriples(const Vec3f* prev, const Vec3f* cur, const uint32_t (*idx)[3], int count, const TripleOptions& opt,
                   int32_t* status, Mat3f* R) {
-  for (int k = 0; k < count; ++k) status[k] = solveTripleRotation(prev[k], cur[k], opt, &R[k]);
+  solveOneByOne(prev, cur, idx, count, opt, status, R);
 }
 
 #endif

@@ -21,11 +21,11 @@ bool tripleBatchAvailable();
 /// time in SIMD lanes where the CPU can (AVX2); the same indices as drawTriple.
 void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t (*idx)[3]);
 
-/// solveTripleRotation for `count` triples, in SIMD lanes where the CPU can: prev[k] and cur[k] are
-/// triple k, status[k] and R[k] its results (R[k] set only when status[k] is kTripleOk). Every
-/// triple goes through exactly the scalar function's floating-point operations, so the results
-/// are identical to it.
-void solveTriples(const Vec3f (*prev)[3], const Vec3f (*cur)[3], int count, const TripleOptions& opt,
+/// solveTripleRotation for `count` triples, in SIMD lanes where the CPU can: triple k is made of
+/// the bearings prev[idx[k][i]] and cur[idx[k][i]], i = 0..2; status[k] and R[k] are its results
+/// (R[k] set only when status[k] is kTripleOk). Every triple goes through exactly the scalar
+/// function's floating-point operations, so the results are identical to it.
+void solveTriples(const Vec3f* prev, const Vec3f* cur, const uint32_t (*idx)[3], int count, const TripleOptions& opt,
                   int32_t* status, Mat3f* R);
 
 }  // namespace hyp
