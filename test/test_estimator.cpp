@@ -13,6 +13,7 @@
 #include "hypothesis_math.h"
 #include "hypothesis_voter.h"
 #include "match_passes.h"
+#include "rotation_refinement.h"
 #include "triple_batch.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
@@ -382,6 +383,34 @@ TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
         EXPECT_EQ(sums[0].used, sums[1].used);
         EXPECT_GT(sums[0].used, 0);
       }
+    }
+  }
+}
+
+TEST(Verification, MatchesInOppositeHemispheresChangeNothing) {
+  // A match whose bearings face away from each other at the rotation is never counted: appended
+  // to a frame's matches, the verification (which then gathers the usable ones one by one rather
+  // than taking the frame's arrays whole) gives exactly the same counts and translation.
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Scene scene = makeScene(R, Vector3d(0.3, -0.1, 1.0), 500, 0.5e-3, 0.3, 2, 30, 23);
+  std::vector<Vector3d> previous = scene.previous, current = scene.current;
+  vg::FrameMatches all_usable, with_opposite;
+  all_usable.assign(previous, current);
+  for (int extra = 0; extra < 3; ++extra) {
+    current.push_back(Vector3d(0.1 * extra, 0.05, 1.0).normalized());
+    previous.push_back(-(R * current.back()));
+  }
+  with_opposite.assign(previous, current);
+  const double threshold = 0.1 * kDeg;
+  for (const Matrix3d& rotation : {R, Matrix3d(R * vg::rotationFromYawPitchRoll(0.3 * kDeg, 0.0, 0.0))}) {
+    for (uint64_t seed : {1u, 7u}) {
+      const vg::VerifiedRotation a = vg::verifyRotation(all_usable, rotation, threshold, seed);
+      const vg::VerifiedRotation b = vg::verifyRotation(with_opposite, rotation, threshold, seed);
+      EXPECT_EQ(a.rotation_inliers, b.rotation_inliers);
+      EXPECT_EQ(a.epipolar_inliers, b.epipolar_inliers);
+      EXPECT_EQ(a.inliers, b.inliers);
+      EXPECT_EQ(std::memcmp(a.translation.data(), b.translation.data(), 3 * sizeof(double)), 0);
+      EXPECT_GT(a.epipolar_inliers, a.rotation_inliers);
     }
   }
 }

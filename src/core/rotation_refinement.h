@@ -21,6 +21,9 @@ class FrameMatches {
 
   /// Coordinates of the bearings in the previous (p*) and the current (c*) frame.
   std::vector<double> px, py, pz, cx, cy, cz;
+  /// px, py, pz split by index parity: those of even index from 0, those of odd index from
+  /// (size() + 1) / 2 (the translation counts' order when every match is usable).
+  std::vector<double> split_px, split_py, split_pz;
 
   /// Scratch of the verification and refinement passes (contents undefined between calls).
   struct Scratch {
@@ -39,12 +42,15 @@ class FrameMatches {
     /// is skipped.
     Eigen::Matrix3d rotation;
     bool rotated = false;
-    /// The usable matches at `rotation` as the translation counts read them (n = b_prev x R b_cur,
-    /// b_prev, R b_cur; valid when `counting`): those of even index from 0 (even_count of them),
-    /// those of odd index from odd_start (odd_count), each group in index order.
+    /// The usable matches at `rotation` as the translation counts read them (valid when
+    /// `counting`): those of even index from 0 (even_count of them), those of odd index from
+    /// odd_start (odd_count), each group in index order. `counted` points at the arrays: the q*
+    /// ones (n = b_prev x R b_cur, b_prev, R b_cur), or for b_prev the frame's split_p* when every
+    /// match is usable.
     std::vector<double> qnx, qny, qnz, qpx, qpy, qpz, qrx, qry, qrz;
     size_t even_count = 0, odd_start = 0, odd_count = 0;
     bool counting = false;
+    const double* counted[9] = {};  ///< p x, y, z, then R b_cur, then n
     std::vector<uint32_t> moving;  ///< matches a pure rotation does not explain (verification)
   };
   Scratch scratch;
