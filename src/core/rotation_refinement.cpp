@@ -259,14 +259,12 @@ struct NormalEquations {
 enum class Weighting { kTukey, kInliers };
 
 // Gathers every stride-th match whose keep[i] is not zero (every match when keep is nullptr) into
-// the scratch's contiguous arrays, padded with zero bearings to whole chunks, where the summing pass
-// of this CPU wants them (passes::PassTable).
-void gatherMatches(FrameMatches& m, const double* keep, size_t stride) {
-  FrameMatches::Scratch& s = m.scratch;
+// the six arrays `to` (b_prev, then b_cur), padded with zero bearings to whole chunks, where the
+// summing pass of this CPU wants them (passes::PassTable). Returns the number gathered.
+size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, std::vector<double>* const to[6]) {
   const size_t n = m.size();
   const size_t capacity = (n + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
   const bool interleaved = passes::passes().interleaved;
-  std::vector<double>* to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
   double* out[6];
   for (int a = 0; a < 6; ++a) {
     to[a]->resize(capacity);
@@ -291,7 +289,31 @@ void gatherMatches(FrameMatches& m, const double* keep, size_t stride) {
     const size_t at = passes::gatheredPosition(k, interleaved);
     for (int a = 0; a < 6; ++a) out[a][at] = 0.0;
   }
-  s.gathered = count;
+  return count;
+}
+
+// Matches gathered for the summing passes: b_prev (p) and b_cur (c), `count` of them.
+struct Gathered {
+  const double *px, *py, *pz, *cx, *cy, *cz;
+  size_t count;
+};
+
+// The matches the last gatherMatches put into the scratch.
+Gathered gatheredInScratch(const FrameMatches& m) {
+  const FrameMatches::Scratch& s = m.scratch;
+  return {s.gpx.data(), s.gpy.data(), s.gpz.data(), s.gcx.data(), s.gcy.data(), s.gcz.data(), s.gathered};
+}
+
+// Every match of the frame, gathered on the frame's first call (each refinement's covariance
+// pass reads them all).
+Gathered gatheredAll(FrameMatches& m) {
+  if (!m.all_gathered) {
+    std::vector<double>* const all[6] = {&m.all_px, &m.all_py, &m.all_pz, &m.all_cx, &m.all_cy, &m.all_cz};
+    gatherMatches(m, nullptr, 1, all);
+    m.all_gathered = true;
+  }
+  return {m.all_px.data(), m.all_py.data(), m.all_pz.data(), m.all_cx.data(), m.all_cy.data(), m.all_cz.data(),
+          m.size()};
 }
 
 // One pass over the gathered matches gives both the cost at (R, t) and the normal equations for
@@ -303,14 +325,13 @@ void gatherMatches(FrameMatches& m, const double* keep, size_t stride) {
 // chunks of vectorised arithmetic (passes::PassTable::sumEpipolar) and only the 15 distinct
 // entries of the symmetric matrix are summed. The padding's zero bearings have zero residual and
 // Jacobian: they add nothing.
-void accumulateEpipolar(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate,
+void accumulateEpipolar(const Gathered& g, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate,
                         Weighting weighting, NormalEquations* ne) {
-  const FrameMatches::Scratch& s = m.scratch;
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
   const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
   passes::EpipolarSums sums;
-  passes::passes().sumEpipolar(s.gpx.data(), s.gpy.data(), s.gpz.data(), s.gcx.data(), s.gcy.data(), s.gcz.data(),
-                               s.gathered, rows, t.data(), B.data(), gate, weighting == Weighting::kTukey, &sums);
+  passes::passes().sumEpipolar(g.px, g.py, g.pz, g.cx, g.cy, g.cz, g.count, rows, t.data(), B.data(), gate,
+                               weighting == Weighting::kTukey, &sums);
   Eigen::Matrix<double, 5, 5> A;
   int k = 0;
   for (int row = 0; row < 5; ++row)
@@ -325,11 +346,9 @@ void accumulateEpipolar(const FrameMatches& m, const Eigen::Matrix3d& R, const E
 }
 
 // The Tukey cost accumulateEpipolar gives at (R, t), alone.
-double tukeyCost(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate) {
-  const FrameMatches::Scratch& s = m.scratch;
+double tukeyCost(const Gathered& g, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate) {
   const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
-  return passes::passes().tukeyCost(s.gpx.data(), s.gpy.data(), s.gpz.data(), s.gcx.data(), s.gcy.data(),
-                                    s.gcz.data(), s.gathered, rows, t.data(), gate);
+  return passes::passes().tukeyCost(g.px, g.py, g.pz, g.cx, g.cy, g.cz, g.count, rows, t.data(), gate);
 }
 
 RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3d t, double threshold,
@@ -362,8 +381,10 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
     s.weights.resize(n);
     passes::passes().gateWeights(matchArrays(m), n, t.data(), gate_width * gate_width, s.weights.data());
     NormalEquations here, there;
-    gatherMatches(m, s.weights.data(), stride);
-    accumulateEpipolar(m, R, t, gate_width, Weighting::kTukey, &here);
+    std::vector<double>* const to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
+    s.gathered = gatherMatches(m, s.weights.data(), stride, to);
+    const Gathered gated = gatheredInScratch(m);
+    accumulateEpipolar(gated, R, t, gate_width, Weighting::kTukey, &here);
     for (int it = 0; it < round_iterations && here.used >= 6; ++it) {
       // Levenberg-Marquardt damping: under (nearly) pure rotation the translation direction is
       // unobservable and J^T W J is singular in those two columns.
@@ -381,9 +402,9 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
       // The round's last step is only accepted or rejected: its cost decides, the normal
       // equations at its end would not be used (the next round starts from its own).
       if (converged || it + 1 == round_iterations) {
-        there.cost = tukeyCost(m, R_new, t_new, gate_width);
+        there.cost = tukeyCost(gated, R_new, t_new, gate_width);
       } else {
-        accumulateEpipolar(m, R_new, t_new, gate_width, Weighting::kTukey, &there);
+        accumulateEpipolar(gated, R_new, t_new, gate_width, Weighting::kTukey, &there);
       }
       if (there.cost <= here.cost) {
         R = R_new;
@@ -399,8 +420,7 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   }
   // Covariance: sigma^2 (J^T W J)^-1 at the solution, over the final inliers.
   NormalEquations final_fit;
-  gatherMatches(m, nullptr, 1);
-  accumulateEpipolar(m, R, t, threshold, Weighting::kInliers, &final_fit);
+  accumulateEpipolar(gatheredAll(m), R, t, threshold, Weighting::kInliers, &final_fit);
   const int inliers = final_fit.used;
   out.rotation = R;
   out.translation = t;
@@ -434,6 +454,7 @@ void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const st
   splitByParity(n, px.data(), split_px.data(), split_px.data() + odd_start);
   splitByParity(n, py.data(), split_py.data(), split_py.data() + odd_start);
   splitByParity(n, pz.data(), split_pz.data(), split_pz.data() + odd_start);
+  all_gathered = false;
   scratch.rotated = false;
   scratch.counting = false;
 }

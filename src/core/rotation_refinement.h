@@ -24,6 +24,10 @@ class FrameMatches {
   /// px, py, pz split by index parity: those of even index from 0, those of odd index from
   /// (size() + 1) / 2 (the translation counts' order when every match is usable).
   std::vector<double> split_px, split_py, split_pz;
+  /// Every match as the summing passes read gathered ones (in the order passes::gatheredPosition
+  /// gives, padded with zero bearings to whole chunks); filled when first needed (all_gathered).
+  std::vector<double> all_px, all_py, all_pz, all_cx, all_cy, all_cz;
+  bool all_gathered = false;
 
   /// Scratch of the verification and refinement passes (contents undefined between calls).
   struct Scratch {
