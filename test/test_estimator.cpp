@@ -387,6 +387,20 @@ TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
   }
 }
 
+TEST(MatchPasses, SelectKthIsNthElement) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1e-6);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const size_t n = 1 + rng() % 1200;
+    std::vector<double> a(n);
+    for (double& v : a) v = trial % 4 == 0 ? static_cast<double>(rng() % 5) : u(rng) * u(rng);  // ties too
+    const size_t k = trial % 3 == 0 ? rng() % n : n / 2;
+    std::vector<double> b = a;
+    std::nth_element(b.begin(), b.begin() + static_cast<long>(k), b.end());
+    ASSERT_EQ(vg::passes::selectKth(a.data(), n, k), b[k]) << "trial " << trial;
+  }
+}
+
 TEST(Verification, MatchesInOppositeHemispheresChangeNothing) {
   // A match whose bearings face away from each other at the rotation is never counted: appended
   // to a frame's matches, the verification (which then gathers the usable ones one by one rather

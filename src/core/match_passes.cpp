@@ -402,6 +402,39 @@ const PassTable* detectAvx2() {
 
 }  // namespace
 
+double selectKth(double* a, size_t n, size_t k) {
+  // Quickselect on a median-of-three pivot. Each partition writes every element (a swap with the
+  // partition's end, which only the smaller ones then advance) instead of branching on its side:
+  // the sides of the median of residuals are a coin toss, which a branch predictor cannot learn.
+  size_t lo = 0, hi = n;
+  while (hi - lo > 24) {
+    const double x = a[lo], y = a[lo + (hi - lo) / 2], z = a[hi - 1];
+    const double pivot = std::max(std::min(x, y), std::min(std::max(x, y), z));
+    size_t below = lo;  // [lo, below) < pivot
+    for (size_t i = lo; i < hi; ++i) {
+      const double v = a[i];
+      a[i] = a[below];
+      a[below] = v;
+      below += v < pivot;
+    }
+    if (k < below) {
+      hi = below;
+      continue;
+    }
+    size_t equal = below;  // [below, equal) == pivot: at least the pivot itself, so the range shrinks
+    for (size_t i = below; i < hi; ++i) {
+      const double v = a[i];
+      a[i] = a[equal];
+      a[equal] = v;
+      equal += v <= pivot;
+    }
+    if (k < equal) return pivot;
+    lo = equal;
+  }
+  std::sort(a + lo, a + hi);
+  return a[k];
+}
+
 const PassTable& baselinePasses() { return kBaseline; }
 
 const PassTable* avx2Passes() {

@@ -82,6 +82,10 @@ inline size_t gatheredPosition(size_t k, bool interleaved) {
   return k - e + (packet % 8) * 4 + (packet / 8) * 2 + e % 2;
 }
 
+/// The k-th smallest of a[0..n) (k < n; a is reordered): the value std::nth_element leaves at a[k],
+/// found by partitions without data-dependent branches.
+double selectKth(double* a, size_t n, size_t k);
+
 /// The baseline variant.
 const PassTable& baselinePasses();
 /// The AVX2 variant, or nullptr when the CPU (or the build) has none.

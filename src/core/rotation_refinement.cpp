@@ -167,10 +167,9 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
   }
   squared.resize(kept);
   if (squared.size() < 10) return threshold;
-  const size_t mid = squared.size() / 2;
-  std::nth_element(squared.begin(), squared.begin() + mid, squared.end());
+  const double median = passes::selectKth(squared.data(), squared.size(), squared.size() / 2);
   // The 2-D pure-rotation residual's median is ~1.18 sigma, the 1-D |r|'s 0.67 sigma.
-  const double sigma = std::sqrt(squared[mid]) / (t != nullptr ? 0.6745 : 1.1774);
+  const double sigma = std::sqrt(median) / (t != nullptr ? 0.6745 : 1.1774);
   return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
 }
 
