@@ -7,6 +7,7 @@
 #include "match_passes.h"
 
 #include <cmath>
+#include <cstdint>
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -44,14 +45,16 @@ VG_BODY void rotateBody(size_t n, const double* R, const double* __restrict px, 
 
 VG_BODY int countBody(const MatchArrays& m, size_t begin, size_t end, const double* t, double gate2) {
   const double tx = t[0], ty = t[1], tz = t[2];
-  int count = 0;
+  // A 64-bit count, as wide as the comparisons' lanes: the vectorised loop adds their masks as they
+  // are, without packing them to 32 bits first.
+  int64_t count = 0;
   for (size_t i = begin; i < end; ++i) {
     const double algebraic = tx * m.nx[i] + ty * m.ny[i] + tz * m.nz[i];
     const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
     const double trc = tx * m.rx[i] + ty * m.ry[i] + tz * m.rz[i];
     count += algebraic * algebraic < gate2 * sampsonNorm2(tp, trc);
   }
-  return count;
+  return static_cast<int>(count);
 }
 
 VG_BODY void residualsBody(size_t n, const double* t, const double* __restrict px, const double* __restrict py,
