@@ -7,7 +7,8 @@
 #                                  (with its batched triple solver)
 #   visual_gyro_cli_objects        src/tools/command_line: the commands' command-line conventions
 #   visual_gyro_bearing_objects    src/io/bearing_file: the bearing-file format (plain C++)
-#   visual_gyro_estimator_objects  rotation estimator, refinement, frame status, setting fields (Eigen)
+#   visual_gyro_estimator_objects  rotation estimator, refinement (and its per-match passes), frame status,
+#                                  setting fields (Eigen)
 #   visual_gyro_metrics_objects    src/eval/metrics: per-frame errors and their summaries (Eigen)
 #
 # The estimator's sources are compiled with VISUAL_GYRO_WITH_CUDA when the caller sets

@@ -326,7 +326,8 @@ TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
   Arrays base_rotated, avx2_rotated;
   rotate(base, &base_rotated);
   rotate(*avx2, &avx2_rotated);
-  for (int a = 0; a < 7; ++a) ASSERT_EQ(std::memcmp(base_rotated[a].data(), avx2_rotated[a].data(), n * sizeof(double)), 0);
+  for (int a = 0; a < 7; ++a)
+    ASSERT_EQ(std::memcmp(base_rotated[a].data(), avx2_rotated[a].data(), n * sizeof(double)), 0);
   const Arrays& o = base_rotated;
   const vg::passes::MatchArrays arrays = {p[0].data(), p[1].data(), p[2].data(), o[0].data(), o[1].data(),
                                           o[2].data(),  o[3].data(), o[4].data(), o[5].data(), o[6].data()};

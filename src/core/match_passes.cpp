@@ -6,10 +6,14 @@
 // sumEpipolarAvx2).
 #include "match_passes.h"
 
+#include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
 
-#if defined(__x86_64__) && defined(__GNUC__)
+// The AVX2 variant reproduces a baseline compiled for plain x86-64: Eigen's SSE2 packets and no
+// fused multiply-add. A build for a wider target (AVX or FMA enabled for the whole file) has
+// neither, and its baseline is already vectorised for that target: it then runs alone.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__AVX__) && !defined(__FMA__)
 #include <immintrin.h>
 #define VG_MATCH_PASSES_AVX2 1
 #endif

@@ -4,7 +4,6 @@
 // in either), so the results do not depend on the CPU. Private to src/core.
 #pragma once
 
-#include <Eigen/Core>
 #include <algorithm>
 #include <cstddef>
 

@@ -511,7 +511,8 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
         trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
     }
-    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
+    if (!out.translation.isZero())
+      out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
     const passes::MatchArrays arrays = matchArrays(m);

@@ -8,7 +8,9 @@
 // already found every pair orthogonal, a further sweep finds the same and changes nothing.
 #include "triple_batch.h"
 
-#if defined(__x86_64__) && defined(__GNUC__)
+// Without FMA enabled for the whole file: with it, the compiler may fuse the scalar solver's
+// multiplications and additions, which the lanes do not reproduce; the scalar solver then runs.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__FMA__)
 #include <immintrin.h>
 #define VG_TRIPLE_BATCH 1
 #endif
