@@ -4,9 +4,11 @@
 # exactly one target that compiles it, defined here.
 #
 #   visual_gyro_voter_objects      src/voter: hypothesis math, the voter interface, the CPU gold voter
+#                                  (with its batched triple solver)
 #   visual_gyro_cli_objects        src/tools/command_line: the commands' command-line conventions
 #   visual_gyro_bearing_objects    src/io/bearing_file: the bearing-file format (plain C++)
-#   visual_gyro_estimator_objects  rotation estimator, refinement, frame status, setting fields (Eigen)
+#   visual_gyro_estimator_objects  rotation estimator, refinement (and its per-match passes), frame status,
+#                                  setting fields (Eigen)
 #   visual_gyro_metrics_objects    src/eval/metrics: per-frame errors and their summaries (Eigen)
 #
 # The estimator's sources are compiled with VISUAL_GYRO_WITH_CUDA when the caller sets
@@ -14,7 +16,8 @@
 get_filename_component(VISUAL_GYRO_SRC_DIR "${CMAKE_CURRENT_LIST_DIR}" ABSOLUTE)
 get_filename_component(VISUAL_GYRO_PUBLIC_INCLUDE "${CMAKE_CURRENT_LIST_DIR}/../include" ABSOLUTE)
 
-add_library(visual_gyro_voter_objects OBJECT "${VISUAL_GYRO_SRC_DIR}/voter/cpu_voter.cpp")
+add_library(visual_gyro_voter_objects OBJECT
+  "${VISUAL_GYRO_SRC_DIR}/voter/cpu_voter.cpp" "${VISUAL_GYRO_SRC_DIR}/voter/triple_batch.cpp")
 target_include_directories(visual_gyro_voter_objects PUBLIC "${VISUAL_GYRO_SRC_DIR}/voter")
 
 add_library(visual_gyro_cli_objects OBJECT "${VISUAL_GYRO_SRC_DIR}/tools/command_line.cpp")
@@ -33,6 +36,7 @@ endforeach()
 if(VISUAL_GYRO_EIGEN_TARGET)
   add_library(visual_gyro_estimator_objects OBJECT
     "${VISUAL_GYRO_SRC_DIR}/core/frame_status.cpp"
+    "${VISUAL_GYRO_SRC_DIR}/core/match_passes.cpp"
     "${VISUAL_GYRO_SRC_DIR}/core/rotation_estimator.cpp"
     "${VISUAL_GYRO_SRC_DIR}/core/rotation_refinement.cpp")
   target_include_directories(visual_gyro_estimator_objects PUBLIC

@@ -4,12 +4,17 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <algorithm>
+#include <array>
+#include <cstring>
 #include <string>
 #include <random>
 #include <set>
 
 #include "hypothesis_math.h"
 #include "hypothesis_voter.h"
+#include "match_passes.h"
+#include "rotation_refinement.h"
+#include "triple_batch.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
 
@@ -168,6 +173,55 @@ TEST(TripleSolver, RejectsDegenerateTriples) {
   }
 }
 
+TEST(TripleSolver, BatchSameAsScalarBitForBit) {
+  if (!vg::hyp::tripleBatchAvailable()) GTEST_SKIP() << "no batched triple solver on this CPU";
+  // Well-conditioned, noisy, repeated, thin, mirrored and non-finite triples mixed, under every
+  // option the voter uses; a count that is not a multiple of the lanes. Triple k is made of
+  // bearings 3k .. 3k + 2 of the lists, drawn in a shuffled order.
+  std::mt19937 rng(21);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> angle(-0.3, 0.3);
+  constexpr uint32_t kCount = 1001;
+  std::vector<vg::hyp::Vec3f> prev(3 * kCount), cur(3 * kCount);
+  std::vector<std::array<uint32_t, 3>> idx(kCount);
+  int solved = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    vg::hyp::TripleOptions opt = defaultTripleOptions(trial % 2 == 1);
+    if (trial % 3 == 0) opt.max_angle_change = static_cast<float>(0.3 * kDeg);
+    for (uint32_t k = 0; k < kCount; ++k) {
+      const Matrix3d R = vg::rotationFromYawPitchRoll(angle(rng), angle(rng), angle(rng));
+      const int kind = (trial + k) % 7;
+      for (uint32_t i = 0; i < 3; ++i) {
+        Vector3d c = randomBearingInView(rng);
+        if (kind == 1) c = randomBearingInView(rng, 0.01, 0.01);  // thin
+        Vector3d p = R * c;
+        if (kind == 2) p = (p + Vector3d(noise(rng), noise(rng), 0.0)).normalized();
+        if (kind == 3) p.x() = -p.x();  // mirrored
+        cur[3 * k + i] = toF(c);
+        prev[3 * k + i] = toF(p);
+      }
+      if (kind == 4) cur[3 * k + 2] = cur[3 * k];  // repeated
+      if (kind == 5) prev[3 * k + 1] = vg::hyp::make3(NAN, 0.f, 1.f);
+      idx[k] = {3 * k + 2, 3 * k, 3 * k + 1};
+    }
+    std::vector<int32_t> status(kCount);
+    std::vector<vg::hyp::Mat3f> batch(kCount);
+    vg::hyp::solveTriples(prev.data(), cur.data(), reinterpret_cast<const uint32_t(*)[3]>(idx.data()), kCount, opt,
+                          status.data(), batch.data());
+    for (uint32_t k = 0; k < kCount; ++k) {
+      const vg::hyp::Vec3f p[3] = {prev[idx[k][0]], prev[idx[k][1]], prev[idx[k][2]]};
+      const vg::hyp::Vec3f c[3] = {cur[idx[k][0]], cur[idx[k][1]], cur[idx[k][2]]};
+      vg::hyp::Mat3f one;
+      const int32_t expected = vg::hyp::solveTripleRotation(p, c, opt, &one);
+      ASSERT_EQ(status[k], expected) << "trial " << trial << " triple " << k;
+      if (expected != vg::hyp::kTripleOk) continue;
+      ++solved;
+      ASSERT_EQ(std::memcmp(one.m, batch[k].m, sizeof(one.m)), 0) << "trial " << trial << " triple " << k;
+    }
+  }
+  EXPECT_GT(solved, 24 * static_cast<int>(kCount) / 4);
+}
+
 TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {
   for (uint32_t n : {3u, 4u, 10u, 1000u}) {
     std::set<uint32_t> seen;
@@ -190,6 +244,22 @@ TEST(TripleDraw, DistinctIndicesInRangeAndDeterministic) {
   vg::hyp::drawTriple(1, 7, 1000, a);
   vg::hyp::drawTriple(2, 7, 1000, b);
   EXPECT_FALSE(a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) << "the seed changes the triples";
+}
+
+TEST(TripleDraw, BatchSameAsOneAtATime) {
+  for (uint64_t seed : {0ull, 42ull, (1ull << 40) + 7}) {
+    for (uint32_t n : {3u, 4u, 1000u, 100000u}) {
+      for (uint32_t first : {0u, 5u, 123456u}) {
+        uint32_t batch[203][3];
+        vg::hyp::drawTriples(seed, first, 203, n, batch);
+        for (uint32_t k = 0; k < 203; ++k) {
+          uint32_t one[3];
+          vg::hyp::drawTriple(seed, first + k, n, one);
+          for (int i = 0; i < 3; ++i) ASSERT_EQ(batch[k][i], one[i]) << seed << " " << n << " " << first + k;
+        }
+      }
+    }
+  }
 }
 
 TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
@@ -223,6 +293,141 @@ TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
   EXPECT_NEAR(vg::hyp::binCentre(r1.winner, 0.f, req.grid), 2 * kDeg, 0.1 * kDeg);
   req.matches = 2;
   EXPECT_THROW(voter->vote(req, &r1), std::invalid_argument);
+}
+
+TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
+  const vg::passes::PassTable* avx2 = vg::passes::avx2Passes();
+  if (avx2 == nullptr) GTEST_SKIP() << "no AVX2 on this CPU";
+  const vg::passes::PassTable& base = vg::passes::baselinePasses();
+  // A close scene under rotation and translation with wrong matches, a count that fills no
+  // whole chunk, a rotation and translation near the truth.
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Vector3d truth_t(0.3, -0.1, 1.0);
+  const Scene scene = makeScene(R, truth_t, 1037, 0.5e-3, 0.2, 2, 30, 17);
+  const size_t n = scene.current.size();
+  std::vector<double> p[3], c[3];
+  for (int a = 0; a < 3; ++a) {
+    p[a].resize(n);
+    c[a].resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      p[a][i] = scene.previous[i][a];
+      c[a][i] = scene.current[i][a];
+    }
+  }
+  const Matrix3d R_near = R * vg::rotationFromYawPitchRoll(0.05 * kDeg, 0.02 * kDeg, -0.03 * kDeg);
+  const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> rows = R_near;
+  using Arrays = std::array<std::vector<double>, 7>;  // r, n, facing
+  auto rotate = [&](const vg::passes::PassTable& table, Arrays* out) {
+    for (std::vector<double>& v : *out) v.assign(n, 0.0);
+    Arrays& o = *out;
+    table.rotate(n, rows.data(), p[0].data(), p[1].data(), p[2].data(), c[0].data(), c[1].data(), c[2].data(),
+                 o[0].data(), o[1].data(), o[2].data(), o[3].data(), o[4].data(), o[5].data(), o[6].data());
+  };
+  Arrays base_rotated, avx2_rotated;
+  rotate(base, &base_rotated);
+  rotate(*avx2, &avx2_rotated);
+  for (int a = 0; a < 7; ++a)
+    ASSERT_EQ(std::memcmp(base_rotated[a].data(), avx2_rotated[a].data(), n * sizeof(double)), 0);
+  const Arrays& o = base_rotated;
+  const vg::passes::MatchArrays arrays = {p[0].data(), p[1].data(), p[2].data(), o[0].data(), o[1].data(),
+                                          o[2].data(),  o[3].data(), o[4].data(), o[5].data(), o[6].data()};
+  for (const Vector3d& t_raw : {truth_t, Vector3d(0.31, -0.09, 1.0), Vector3d(1.0, 0.0, 0.2)}) {
+    const Vector3d t = t_raw.normalized();
+    for (double gate : {0.1 * kDeg, 0.5 * kDeg}) {
+      EXPECT_EQ(base.countWithinGate(arrays, 0, n, t.data(), gate * gate),
+                avx2->countWithinGate(arrays, 0, n, t.data(), gate * gate));
+      EXPECT_EQ(base.countWithinGate(arrays, 5, 70, t.data(), gate * gate),
+                avx2->countWithinGate(arrays, 5, 70, t.data(), gate * gate));
+      std::vector<double> base_weights(n), avx2_weights(n);
+      base.gateWeights(arrays, n, t.data(), gate * gate, base_weights.data());
+      avx2->gateWeights(arrays, n, t.data(), gate * gate, avx2_weights.data());
+      ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      base.huberWeights(arrays, n, gate * gate, 0.5 * gate, base_weights.data());
+      avx2->huberWeights(arrays, n, gate * gate, 0.5 * gate, avx2_weights.data());
+      ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      for (const double* direction : {t.data(), static_cast<const double*>(nullptr)}) {
+        base.residuals2(arrays, n, direction, base_weights.data());
+        avx2->residuals2(arrays, n, direction, avx2_weights.data());
+        ASSERT_EQ(std::memcmp(base_weights.data(), avx2_weights.data(), n * sizeof(double)), 0);
+      }
+      // The normal equations over a subset of the matches, each variant's layout.
+      std::vector<uint32_t> subset;
+      for (size_t i = 0; i < n; i += 1 + i % 3) subset.push_back(static_cast<uint32_t>(i));
+      const size_t padded = (subset.size() + vg::passes::kChunk - 1) / vg::passes::kChunk * vg::passes::kChunk;
+      Eigen::Matrix<double, 3, 2> B;
+      B.col(0) = t.cross(Vector3d::UnitX()).normalized();
+      B.col(1) = t.cross(B.col(0));
+      for (bool tukey : {true, false}) {
+        vg::passes::EpipolarSums sums[2];
+        for (int variant = 0; variant < 2; ++variant) {
+          const vg::passes::PassTable& table = variant == 0 ? base : *avx2;
+          std::vector<double> g[6];
+          for (int a = 0; a < 6; ++a) g[a].assign(padded, 0.0);
+          for (size_t k = 0; k < subset.size(); ++k) {
+            const size_t at = vg::passes::gatheredPosition(k, table.interleaved);
+            for (int a = 0; a < 3; ++a) {
+              g[a][at] = p[a][subset[k]];
+              g[3 + a][at] = c[a][subset[k]];
+            }
+          }
+          table.sumEpipolar(g[0].data(), g[1].data(), g[2].data(), g[3].data(), g[4].data(), g[5].data(),
+                            subset.size(), rows.data(), t.data(), B.data(), gate, tukey, &sums[variant]);
+          if (tukey) {  // the cost alone is the same number
+            const double cost = table.tukeyCost(g[0].data(), g[1].data(), g[2].data(), g[3].data(), g[4].data(),
+                                                g[5].data(), subset.size(), rows.data(), t.data(), gate);
+            EXPECT_EQ(std::memcmp(&cost, &sums[variant].cost, sizeof(double)), 0) << "variant " << variant;
+          }
+        }
+        EXPECT_EQ(std::memcmp(sums[0].a, sums[1].a, sizeof(sums[0].a)), 0) << "tukey " << tukey;
+        EXPECT_EQ(std::memcmp(sums[0].g, sums[1].g, sizeof(sums[0].g)), 0) << "tukey " << tukey;
+        EXPECT_EQ(std::memcmp(&sums[0].cost, &sums[1].cost, sizeof(double)), 0) << "tukey " << tukey;
+        EXPECT_EQ(sums[0].used, sums[1].used);
+        EXPECT_GT(sums[0].used, 0);
+      }
+    }
+  }
+}
+
+TEST(MatchPasses, SelectKthIsNthElement) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1e-6);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const size_t n = 1 + rng() % 1200;
+    std::vector<double> a(n);
+    for (double& v : a) v = trial % 4 == 0 ? static_cast<double>(rng() % 5) : u(rng) * u(rng);  // ties too
+    const size_t k = trial % 3 == 0 ? rng() % n : n / 2;
+    std::vector<double> b = a;
+    std::nth_element(b.begin(), b.begin() + static_cast<long>(k), b.end());
+    ASSERT_EQ(vg::passes::selectKth(a.data(), n, k), b[k]) << "trial " << trial;
+  }
+}
+
+TEST(Verification, MatchesInOppositeHemispheresChangeNothing) {
+  // A match whose bearings face away from each other at the rotation is never counted: appended
+  // to a frame's matches, the verification (which then gathers the usable ones one by one rather
+  // than taking the frame's arrays whole) gives exactly the same counts and translation.
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Scene scene = makeScene(R, Vector3d(0.3, -0.1, 1.0), 500, 0.5e-3, 0.3, 2, 30, 23);
+  std::vector<Vector3d> previous = scene.previous, current = scene.current;
+  vg::FrameMatches all_usable, with_opposite;
+  all_usable.assign(previous, current);
+  for (int extra = 0; extra < 3; ++extra) {
+    current.push_back(Vector3d(0.1 * extra, 0.05, 1.0).normalized());
+    previous.push_back(-(R * current.back()));
+  }
+  with_opposite.assign(previous, current);
+  const double threshold = 0.1 * kDeg;
+  for (const Matrix3d& rotation : {R, Matrix3d(R * vg::rotationFromYawPitchRoll(0.3 * kDeg, 0.0, 0.0))}) {
+    for (uint64_t seed : {1u, 7u}) {
+      const vg::VerifiedRotation a = vg::verifyRotation(all_usable, rotation, threshold, seed);
+      const vg::VerifiedRotation b = vg::verifyRotation(with_opposite, rotation, threshold, seed);
+      EXPECT_EQ(a.rotation_inliers, b.rotation_inliers);
+      EXPECT_EQ(a.epipolar_inliers, b.epipolar_inliers);
+      EXPECT_EQ(a.inliers, b.inliers);
+      EXPECT_EQ(std::memcmp(a.translation.data(), b.translation.data(), 3 * sizeof(double)), 0);
+      EXPECT_GT(a.epipolar_inliers, a.rotation_inliers);
+    }
+  }
 }
 
 TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {

@@ -1,4 +1,5 @@
 #include "rotation_refinement.h"
+#include "match_passes.h"
 #include "visual_gyro/geometry.h"
 #include "visual_gyro/random.h"
 
@@ -28,67 +29,118 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
   return B;
 }
 
-// Angular distance of the match from its epipolar plane: the algebraic residual t.(p x Rc) divided
-// by the symmetric Sampson-style norm of its gradient, whose square this returns from t.p and t.Rc
-// (|t x v|^2 = 1 - (t.v)^2 for unit vectors). The algebraic residual shrinks with the distance of
-// the bearings from the epipole, so wrong matches near the focus of expansion pass an algebraic
-// gate as easily as right ones; the geometric residual treats every match alike.
-inline double sampsonNorm2(double tp, double trc) { return std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6); }
+// Whether match i's bearings are in the same hemisphere at the last rotateAll's rotation.
+inline bool usable(const FrameMatches::Scratch& s, size_t i) { return s.facing[i] > 0.0; }
 
-// The angular distance below gate without a square root or a division (this runs for every match
-// of every translation sample). The squared norm is at most 1, so this also implies
-// |t . normal| < gate.
-inline bool withinEpipolarGate(double algebraic, double tp, double trc, double gate) {
-  return algebraic * algebraic < gate * gate * sampsonNorm2(tp, trc);
-}
-
-double huberWeight(double r, double k) {
-  const double a = std::abs(r);
-  return a <= k ? 1.0 : k / a;
+// The matches and the scratch's arrays of the last rotateAll, for the passes.
+passes::MatchArrays matchArrays(const FrameMatches& m) {
+  const FrameMatches::Scratch& s = m.scratch;
+  return {m.px.data(), m.py.data(), m.pz.data(), s.rx.data(), s.ry.data(),
+          s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(), s.facing.data()};
 }
 
 // R b_cur, b_prev x R b_cur and the hemisphere test of every match into the scratch arrays: the
 // one pass per rotation that the counting and gating loops then read. Matches whose bearings
-// point into opposite half-spaces after the rotation cannot be one point.
+// point into opposite half-spaces after the rotation cannot be one point. A rotation equal to the
+// last one's (a refinement starting where a verification ended, a round whose steps were all
+// rejected) finds its results already there.
 void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
-  const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
+  if (s.rotated && s.rotation == R) return;
+  const size_t n = m.size();
   for (std::vector<double>* v : {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz}) v->resize(n);
-  s.usable.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const double rx = R(0, 0) * m.cx[i] + R(0, 1) * m.cy[i] + R(0, 2) * m.cz[i];
-    const double ry = R(1, 0) * m.cx[i] + R(1, 1) * m.cy[i] + R(1, 2) * m.cz[i];
-    const double rz = R(2, 0) * m.cx[i] + R(2, 1) * m.cy[i] + R(2, 2) * m.cz[i];
-    s.rx[i] = rx;
-    s.ry[i] = ry;
-    s.rz[i] = rz;
-    s.nx[i] = m.py[i] * rz - m.pz[i] * ry;
-    s.ny[i] = m.pz[i] * rx - m.px[i] * rz;
-    s.nz[i] = m.px[i] * ry - m.py[i] * rx;
-    s.usable[i] = m.px[i] * rx + m.py[i] * ry + m.pz[i] * rz > 0.0;
-  }
+  s.facing.resize(n);
+  const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
+  passes::passes().rotate(n, rows, m.px.data(), m.py.data(), m.pz.data(), m.cx.data(), m.cy.data(), m.cz.data(),
+                          s.rx.data(), s.ry.data(), s.rz.data(), s.nx.data(), s.ny.data(), s.nz.data(),
+                          s.facing.data());
+  s.rotation = R;
+  s.rotated = true;
+  s.counting = false;
 }
 
-// Epipolar inliers of translation t among every stride-th match, from the scratch of rotateAll.
-// Only a count above `beat` is of use to the caller: the count stops, returning something no
-// larger, as soon as the matches left cannot lift it above `beat` (most sampled translations are
-// wrong and are given up after a fraction of the matches). Checked once per block, so that the
-// loop within a block has no early exit.
-int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, size_t stride, int beat) {
+// a[i] of even i into even[], of odd i into odd[] (a de-interleave the compiler vectorises).
+void splitByParity(size_t n, const double* __restrict a, double* __restrict even, double* __restrict odd) {
+  for (size_t j = 0; j < n / 2; ++j) {
+    even[j] = a[2 * j];
+    odd[j] = a[2 * j + 1];
+  }
+  if (n % 2 == 1) even[n / 2] = a[n - 1];
+}
+
+// The usable matches of the last rotateAll in the counting arrays (even indices, then odd ones).
+// The translation counts of a verification (up to some seventy per rotation) then read
+// contiguous arrays with no hemisphere test, and the sampled counts only the first group.
+void prepareCounting(FrameMatches& m) {
+  FrameMatches::Scratch& s = m.scratch;
+  if (s.counting) return;
+  const size_t n = m.size();
+  for (std::vector<double>* v : {&s.qnx, &s.qny, &s.qnz, &s.qpx, &s.qpy, &s.qpz, &s.qrx, &s.qry, &s.qrz})
+    v->resize(n);
+  s.odd_start = (n + 1) / 2;
+  bool all_usable = true;
+  for (size_t i = 0; i < n; ++i) all_usable &= usable(s, i);
+  if (all_usable) {
+    // Nearly always so: the groups are the arrays split by parity, b_prev's split once per frame.
+    const std::vector<double>* from[6] = {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz};
+    std::vector<double>* to[6] = {&s.qrx, &s.qry, &s.qrz, &s.qnx, &s.qny, &s.qnz};
+    for (int a = 0; a < 6; ++a) splitByParity(n, from[a]->data(), to[a]->data(), to[a]->data() + s.odd_start);
+    s.even_count = s.odd_start;
+    s.odd_count = n / 2;
+    const double* counted[9] = {m.split_px.data(), m.split_py.data(), m.split_pz.data(), s.qrx.data(), s.qry.data(),
+                                s.qrz.data(),      s.qnx.data(),      s.qny.data(),      s.qnz.data()};
+    std::copy(counted, counted + 9, s.counted);
+    s.counting = true;
+    return;
+  }
+  // Without branches: each match is written at the group's next place, which only a usable one
+  // then takes (a group's place never reaches the next group: it counts the group's matches before).
+  size_t next[2] = {0, s.odd_start};
+  for (size_t first = 0; first < 2; ++first) {
+    size_t k = next[first];
+    for (size_t i = first; i < n; i += 2) {
+      s.qnx[k] = s.nx[i];
+      s.qny[k] = s.ny[i];
+      s.qnz[k] = s.nz[i];
+      s.qpx[k] = m.px[i];
+      s.qpy[k] = m.py[i];
+      s.qpz[k] = m.pz[i];
+      s.qrx[k] = s.rx[i];
+      s.qry[k] = s.ry[i];
+      s.qrz[k] = s.rz[i];
+      k += usable(s, i);
+    }
+    next[first] = k;
+  }
+  s.even_count = next[0];
+  s.odd_count = next[1] - s.odd_start;
+  const double* counted[9] = {s.qpx.data(), s.qpy.data(), s.qpz.data(), s.qrx.data(), s.qry.data(),
+                              s.qrz.data(), s.qnx.data(), s.qny.data(), s.qnz.data()};
+  std::copy(counted, counted + 9, s.counted);
+  s.counting = true;
+}
+
+// Epipolar inliers of translation t among the counting arrays' matches: the first group only when
+// `sampled` (every other match), else both. Only a count above `beat` is of use to the caller: the
+// count stops, returning something no larger, as soon as the matches left cannot lift it above
+// `beat` (most sampled translations are wrong and are given up after a fraction of the matches).
+// Checked once per block, so that the loop within a block has no early exit.
+int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, bool sampled, int beat) {
   constexpr size_t kBlock = 64;
   const FrameMatches::Scratch& s = m.scratch;
-  const double tx = t.x(), ty = t.y(), tz = t.z();
-  const size_t n = m.size();
-  const size_t samples = (n + stride - 1) / stride;
+  const passes::MatchArrays arrays = {s.counted[0], s.counted[1], s.counted[2], s.counted[3], s.counted[4],
+                                      s.counted[5], s.counted[6], s.counted[7], s.counted[8], nullptr};
+  const auto count_within = passes::passes().countWithinGate;
+  const double gate2 = gate * gate;
+  const size_t groups[2][2] = {{0, s.even_count}, {s.odd_start, s.odd_start + s.odd_count}};
+  size_t left = s.even_count + (sampled ? 0 : s.odd_count);
   int count = 0;
-  for (size_t block = 0; block < samples; block += kBlock) {
-    if (count + static_cast<int>(samples - block) <= beat) break;
-    const size_t end = std::min(samples, block + kBlock) * stride;
-    for (size_t i = block * stride; i < end; i += stride) {
-      const double algebraic = tx * s.nx[i] + ty * s.ny[i] + tz * s.nz[i];
-      const double tp = tx * m.px[i] + ty * m.py[i] + tz * m.pz[i];
-      const double trc = tx * s.rx[i] + ty * s.ry[i] + tz * s.rz[i];
-      count += s.usable[i] & withinEpipolarGate(algebraic, tp, trc, gate);
+  for (int g = 0; g < (sampled ? 1 : 2); ++g) {
+    for (size_t block = groups[g][0]; block < groups[g][1]; block += kBlock) {
+      if (count + static_cast<int>(left) <= beat) return count;
+      const size_t end = std::min(groups[g][1], block + kBlock);
+      count += count_within(arrays, block, end, t.data(), gate2);
+      left -= end - block;
     }
   }
   return count;
@@ -100,48 +152,54 @@ int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double
 // match's), which need no square root per match.
 double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold) {
   FrameMatches::Scratch& s = m.scratch;
+  const size_t n = m.size();
   std::vector<double>& squared = s.residuals;
-  squared.clear();
+  // The residuals of every match in one vectorised pass, then those of the usable matches below
+  // the threshold kept (in index order) without a branch.
+  s.weights.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, t != nullptr ? t->data() : nullptr, s.weights.data());
+  squared.resize(n);
   const double threshold2 = threshold * threshold;
-  for (size_t i = 0; i < m.size(); ++i) {
-    if (!s.usable[i]) continue;
-    double r2 = 0.0;
-    if (t != nullptr) {
-      const double algebraic = t->x() * s.nx[i] + t->y() * s.ny[i] + t->z() * s.nz[i];
-      const double tp = t->x() * m.px[i] + t->y() * m.py[i] + t->z() * m.pz[i];
-      const double trc = t->x() * s.rx[i] + t->y() * s.ry[i] + t->z() * s.rz[i];
-      r2 = algebraic * algebraic / sampsonNorm2(tp, trc);
-    } else {
-      r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-    }
-    if (r2 < threshold2) squared.push_back(r2);
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i) {
+    squared[kept] = s.weights[i];
+    kept += usable(s, i) && s.weights[i] < threshold2;
   }
+  squared.resize(kept);
   if (squared.size() < 10) return threshold;
-  const size_t mid = squared.size() / 2;
-  std::nth_element(squared.begin(), squared.begin() + mid, squared.end());
+  const double median = passes::selectKth(squared.data(), squared.size(), squared.size() / 2);
   // The 2-D pure-rotation residual's median is ~1.18 sigma, the 1-D |r|'s 0.67 sigma.
-  const double sigma = std::sqrt(squared[mid]) / (t != nullptr ? 0.6745 : 1.1774);
+  const double sigma = std::sqrt(median) / (t != nullptr ? 0.6745 : 1.1774);
   return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
 }
 
 RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double threshold, int iterations) {
   const size_t n = m.size();
-  const FrameMatches::Scratch& s = m.scratch;
+  FrameMatches::Scratch& s = m.scratch;
   RefinedRotation out;
   for (int it = 0; it < std::max(1, iterations); ++it) {
     rotateAll(m, R);
     const double gate_width = it > 0 ? adaptiveGate(m, nullptr, threshold) : 1.6 * threshold;
     const double gate2 = (kRotationGateScale * gate_width) * (kRotationGateScale * gate_width);
-    // Weighted Kabsch: the closed-form minimiser of sum w |b_prev - R b_cur|^2.
-    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    // Weighted Kabsch: the closed-form minimiser of sum w |b_prev - R b_cur|^2. The Huber weights
+    // (zero outside the gate, where they then add exact zeros) come from one vectorised pass; the
+    // sums run in index order.
+    s.weights.resize(n);
+    passes::passes().huberWeights(matchArrays(m), n, gate2, 0.5 * gate_width, s.weights.data());
+    double h[3][3] = {};
     int used = 0;
     for (size_t i = 0; i < n; ++i) {
-      const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-      if (!s.usable[i] || r2 >= gate2) continue;
-      const double w = huberWeight(std::sqrt(r2), 0.5 * gate_width);
-      H.noalias() += (w * m.current(i)) * m.previous(i).transpose();
-      ++used;
+      const double w = s.weights[i];
+      const double wc[3] = {w * m.cx[i], w * m.cy[i], w * m.cz[i]};
+      for (int r = 0; r < 3; ++r) {
+        h[r][0] += wc[r] * m.px[i];
+        h[r][1] += wc[r] * m.py[i];
+        h[r][2] += wc[r] * m.pz[i];
+      }
+      used += w != 0.0;
     }
+    Eigen::Matrix3d H;
+    H << h[0][0], h[0][1], h[0][2], h[1][0], h[1][1], h[1][2], h[2][0], h[2][1], h[2][2];
     if (used < 3) break;
     Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
     Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
@@ -162,7 +220,7 @@ RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double th
   int inliers = 0;
   for (size_t i = 0; i < n; ++i) {
     const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-    if (!s.usable[i] || r2 >= gate2) continue;
+    if (!usable(s, i) || r2 >= gate2) continue;
     const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]);
     const double d = p.dot(rc);
     pp.noalias() += rc.squaredNorm() * p * p.transpose();
@@ -199,24 +257,62 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
-// Chunk length of the summing passes (a multiple of every SIMD width Eigen uses for doubles).
-constexpr int kChunk = 32;
-
-// Gathers the matches `indices` into the scratch's contiguous arrays, padded with zero bearings.
-void gatherMatches(FrameMatches& m, const std::vector<uint32_t>& indices) {
-  FrameMatches::Scratch& s = m.scratch;
-  const size_t count = indices.size();
-  const size_t padded = (count + kChunk - 1) / kChunk * kChunk;
-  std::vector<double>* to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
-  const std::vector<double>* from[6] = {&m.px, &m.py, &m.pz, &m.cx, &m.cy, &m.cz};
+// Gathers every stride-th match whose keep[i] is not zero (every match when keep is nullptr) into
+// the six arrays `to` (b_prev, then b_cur), padded with zero bearings to whole chunks, where the
+// summing pass of this CPU wants them (passes::PassTable). Returns the number gathered.
+size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, std::vector<double>* const to[6]) {
+  const size_t n = m.size();
+  const size_t capacity = (n + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  const bool interleaved = passes::passes().interleaved;
+  double* out[6];
   for (int a = 0; a < 6; ++a) {
-    to[a]->resize(padded);
-    double* out = to[a]->data();
-    const double* in = from[a]->data();
-    for (size_t k = 0; k < count; ++k) out[k] = in[indices[k]];
-    std::fill(out + count, out + padded, 0.0);
+    to[a]->resize(capacity);
+    out[a] = to[a]->data();
   }
-  s.gathered = count;
+  // Without branches (whether a match is kept is close to a coin toss in the wide first rounds):
+  // each match is written at the next place, which only a kept one then takes; the place a last
+  // dropped match took is padding, zeroed below.
+  size_t count = 0;
+  for (size_t i = 0; i < n; i += stride) {
+    const size_t at = passes::gatheredPosition(count, interleaved);
+    out[0][at] = m.px[i];
+    out[1][at] = m.py[i];
+    out[2][at] = m.pz[i];
+    out[3][at] = m.cx[i];
+    out[4][at] = m.cy[i];
+    out[5][at] = m.cz[i];
+    count += keep == nullptr || keep[i] != 0.0;
+  }
+  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  for (size_t k = count; k < padded; ++k) {
+    const size_t at = passes::gatheredPosition(k, interleaved);
+    for (int a = 0; a < 6; ++a) out[a][at] = 0.0;
+  }
+  return count;
+}
+
+// Matches gathered for the summing passes: b_prev (p) and b_cur (c), `count` of them.
+struct Gathered {
+  const double *px, *py, *pz, *cx, *cy, *cz;
+  size_t count;
+};
+
+// The matches the last gatherMatches put into the scratch.
+Gathered gatheredInScratch(const FrameMatches& m) {
+  const FrameMatches::Scratch& s = m.scratch;
+  return {s.gpx.data(), s.gpy.data(), s.gpz.data(), s.gcx.data(), s.gcy.data(), s.gcz.data(), s.gathered};
+}
+
+// Every match of the frame, gathered on the frame's first call (each refinement's covariance
+// pass reads them all).
+Gathered gatheredAll(FrameMatches& m) {
+  if (!m.all_gathered) {
+    std::vector<double>* const all[6] = {&m.all_px, &m.all_py, &m.all_pz, &m.all_cx, &m.all_cy, &m.all_cz};
+    gatherMatches(m, nullptr, 1, all);
+    m.all_gathered = true;
+  }
+  return {m.all_px.data(), m.all_py.data(), m.all_pz.data(), m.all_cx.data(), m.all_cy.data(), m.all_cz.data(),
+          m.size()};
 }
 
 // One pass over the gathered matches gives both the cost at (R, t) and the normal equations for
@@ -225,72 +321,39 @@ void gatherMatches(FrameMatches& m, const std::vector<uint32_t>& indices) {
 // = -(R^T ((t x p) x Rc))^T for the rotation, n^T B for the tangent-plane translation step; the
 // sums are taken with the rotation part's R^T left out and it is applied once at the end. This
 // runs for every gated match in every iteration, so the matches are processed in fixed-size
-// chunks of array expressions (vectorised by Eigen) and only the 15 distinct entries of the
-// symmetric matrix are summed. The padding's zero bearings have zero residual and Jacobian: they
-// add nothing.
-void accumulateEpipolar(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate,
+// chunks of vectorised arithmetic (passes::PassTable::sumEpipolar) and only the 15 distinct
+// entries of the symmetric matrix are summed. The padding's zero bearings have zero residual and
+// Jacobian: they add nothing.
+void accumulateEpipolar(const Gathered& g, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate,
                         Weighting weighting, NormalEquations* ne) {
-  using Chunk = Eigen::Array<double, kChunk, 1>;
-  const FrameMatches::Scratch& s = m.scratch;
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
-  const double tx = t.x(), ty = t.y(), tz = t.z();
-  double a[15] = {}, g[5] = {};
-  double cost = 0.0;
-  int used = 0;
-  for (size_t start = 0; start < s.gathered; start += kChunk) {
-    const int len = static_cast<int>(std::min<size_t>(kChunk, s.gathered - start));
-    const Eigen::Map<const Chunk> px(s.gpx.data() + start), py(s.gpy.data() + start), pz(s.gpz.data() + start);
-    const Eigen::Map<const Chunk> cx(s.gcx.data() + start), cy(s.gcy.data() + start), cz(s.gcz.data() + start);
-    const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
-    const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
-    const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
-    const Chunk nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
-    // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
-    const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
-    const Chunk scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
-    const Chunk r = (tx * nx + ty * ny + tz * nz) * scale;
-    Chunk w;
-    if (weighting == Weighting::kTukey) {
-      // Tukey's biweight with cut-off `gate`: matches near the gate, most likely wrong ones that
-      // slipped in, lose their influence smoothly instead of pulling with a constant (Huber) force.
-      const Chunk u2 = (r * (1.0 / gate)).square();
-      w = (u2 < 1.0).select((1.0 - u2).square(), 0.0);
-      cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).sum();
-      used += len;
-    } else {
-      w = (r.abs() < gate && px * rx + py * ry + pz * rz > 0.0).select(Chunk::Ones(), Chunk::Zero());
-      cost += (w * r.square()).sum();
-      used += static_cast<int>(w.sum());
-    }
-    const Chunk qx = ty * pz - tz * py, qy = tz * px - tx * pz, qz = tx * py - ty * px;  // t x p
-    const Chunk j[5] = {qz * ry - qy * rz, qx * rz - qz * rx, qy * rx - qx * ry,
-                        nx * B(0, 0) + ny * B(1, 0) + nz * B(2, 0), nx * B(0, 1) + ny * B(1, 1) + nz * B(2, 1)};
-    const Chunk ws = w * scale.square(), wr = w * r * scale;
-    int k = 0;
-    for (int row = 0; row < 5; ++row) {
-      g[row] += (wr * j[row]).sum();
-      const Chunk wj = ws * j[row];
-      for (int col = row; col < 5; ++col) a[k++] += (wj * j[col]).sum();
-    }
-  }
+  const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
+  passes::EpipolarSums sums;
+  passes::passes().sumEpipolar(g.px, g.py, g.pz, g.cx, g.cy, g.cz, g.count, rows, t.data(), B.data(), gate,
+                               weighting == Weighting::kTukey, &sums);
   Eigen::Matrix<double, 5, 5> A;
   int k = 0;
   for (int row = 0; row < 5; ++row)
-    for (int col = row; col < 5; ++col) A(row, col) = A(col, row) = a[k++];
+    for (int col = row; col < 5; ++col) A(row, col) = A(col, row) = sums.a[k++];
   Eigen::Matrix<double, 5, 5> T = Eigen::Matrix<double, 5, 5>::Identity();
   T.topLeftCorner<3, 3>() = R.transpose();
   ne->A.noalias() = T * A * T.transpose();
-  ne->g.noalias() = T * Eigen::Map<const Eigen::Matrix<double, 5, 1>>(g);
+  ne->g.noalias() = T * Eigen::Map<const Eigen::Matrix<double, 5, 1>>(sums.g);
   ne->B = B;
-  ne->cost = cost;
-  ne->used = used;
+  ne->cost = sums.cost;
+  ne->used = sums.used;
+}
+
+// The Tukey cost accumulateEpipolar gives at (R, t), alone.
+double tukeyCost(const Gathered& g, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double gate) {
+  const double rows[9] = {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)};
+  return passes::passes().tukeyCost(g.px, g.py, g.pz, g.cx, g.cy, g.cz, g.count, rows, t.data(), gate);
 }
 
 RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3d t, double threshold,
                               int iterations, bool warm) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
-  std::vector<uint32_t>& gated = s.indices;
   RefinedRotation out;
   double lambda = 1e-6;
   // The inlier gate is fixed per outer round (residuals of the round's start), so each
@@ -313,16 +376,14 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
     const int round_iterations = last ? iterations : std::min(iterations, 2);
     // ... on every other match: enough to find the basin; the last round uses them all.
     const size_t stride = last || n < 300 ? 1 : 2;
-    gated.clear();
-    for (size_t i = 0; i < n; i += stride) {
-      const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
-      const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
-      const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
-      if (s.usable[i] && withinEpipolarGate(algebraic, tp, trc, gate_width)) gated.push_back(static_cast<uint32_t>(i));
-    }
+    // The usable matches within the gate (a non-zero weight), gathered for the summing passes.
+    s.weights.resize(n);
+    passes::passes().gateWeights(matchArrays(m), n, t.data(), gate_width * gate_width, s.weights.data());
     NormalEquations here, there;
-    gatherMatches(m, gated);
-    accumulateEpipolar(m, R, t, gate_width, Weighting::kTukey, &here);
+    std::vector<double>* const to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
+    s.gathered = gatherMatches(m, s.weights.data(), stride, to);
+    const Gathered gated = gatheredInScratch(m);
+    accumulateEpipolar(gated, R, t, gate_width, Weighting::kTukey, &here);
     for (int it = 0; it < round_iterations && here.used >= 6; ++it) {
       // Levenberg-Marquardt damping: under (nearly) pure rotation the translation direction is
       // unobservable and J^T W J is singular in those two columns.
@@ -332,12 +393,18 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
       if (!step.allFinite()) break;
       const Eigen::Matrix3d R_new = R * so3Exp(step.head<3>());
       const Eigen::Vector3d t_new = (t + here.B * step.tail<2>()).normalized();
-      accumulateEpipolar(m, R_new, t_new, gate_width, Weighting::kTukey, &there);
       // Converged once the rotation moves by less than kConvergedRotation. A rejected step that
       // small ends the round as well: near the minimum the cost with the Sampson scale held fixed
       // and the true cost differ by more than such a step gains, so further, more damped steps
       // are rejected in turn (each a pass over the matches) and would move the rotation less still.
       const bool converged = step.head<3>().norm() < kConvergedRotation;
+      // The round's last step is only accepted or rejected: its cost decides, the normal
+      // equations at its end would not be used (the next round starts from its own).
+      if (converged || it + 1 == round_iterations) {
+        there.cost = tukeyCost(gated, R_new, t_new, gate_width);
+      } else {
+        accumulateEpipolar(gated, R_new, t_new, gate_width, Weighting::kTukey, &there);
+      }
       if (there.cost <= here.cost) {
         R = R_new;
         t = t_new;
@@ -351,11 +418,8 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
     }
   }
   // Covariance: sigma^2 (J^T W J)^-1 at the solution, over the final inliers.
-  gated.resize(n);
-  for (size_t i = 0; i < n; ++i) gated[i] = static_cast<uint32_t>(i);
   NormalEquations final_fit;
-  gatherMatches(m, gated);
-  accumulateEpipolar(m, R, t, threshold, Weighting::kInliers, &final_fit);
+  accumulateEpipolar(gatheredAll(m), R, t, threshold, Weighting::kInliers, &final_fit);
   const int inliers = final_fit.used;
   out.rotation = R;
   out.translation = t;
@@ -384,6 +448,14 @@ void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const st
     cy[i] = current[i].y();
     cz[i] = current[i].z();
   }
+  const size_t odd_start = (n + 1) / 2;
+  for (std::vector<double>* v : {&split_px, &split_py, &split_pz}) v->resize(n);
+  splitByParity(n, px.data(), split_px.data(), split_px.data() + odd_start);
+  splitByParity(n, py.data(), split_py.data(), split_py.data() + odd_start);
+  splitByParity(n, pz.data(), split_pz.data(), split_pz.data() + odd_start);
+  all_gathered = false;
+  scratch.rotated = false;
+  scratch.counting = false;
 }
 
 VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation, double threshold,
@@ -393,28 +465,32 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
   VerifiedRotation out;
   out.rotation = rotation;
   rotateAll(m, rotation);
-  std::vector<uint32_t>& moving = s.indices;  // matches a pure rotation does not explain: they carry t
-  moving.clear();
+  std::vector<uint32_t>& moving = s.moving;  // matches a pure rotation does not explain: they carry t
   // The pure-rotation residual is 2-D, the epipolar one 1-D: at equal false-rejection rates
-  // (95 %: 2.45 vs 1.96 sigma) the 2-D gate is 1.25 times wider.
+  // (95 %: 2.45 vs 1.96 sigma) the 2-D gate is 1.25 times wider. Without branches (whether a
+  // match is explained is close to a coin toss under translation): every match is written at the
+  // list's end, which only a usable match outside the gate then takes.
   const double rotation_gate2 = (kRotationGateScale * threshold) * (kRotationGateScale * threshold);
+  moving.resize(n);
+  size_t moved = 0;
   for (size_t i = 0; i < n; ++i) {
-    if (!s.usable[i]) continue;
-    if (s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i] < rotation_gate2) {
-      ++out.rotation_inliers;
-    } else {
-      moving.push_back(static_cast<uint32_t>(i));
-    }
+    const bool explained = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i] < rotation_gate2;
+    moving[moved] = static_cast<uint32_t>(i);
+    moved += usable(s, i) & !explained;
+    out.rotation_inliers += usable(s, i) & explained;
   }
+  moving.resize(moved);
   out.epipolar_inliers = out.rotation_inliers;
   auto normal = [&](size_t i) { return Eigen::Vector3d(s.nx[i], s.ny[i], s.nz[i]); };
   // Samples are scored on every other match (counts doubled); the winner is recounted on all.
-  const size_t sample_stride = n >= 200 ? 2 : 1;
+  const bool sampled = n >= 200;
+  const int sample_stride = sampled ? 2 : 1;
   // A translation can at best add the moving matches to the rotation inliers; when they are too
   // few to pass the model selection in refineRotation (kTranslationGain), the search is moot.
   const bool translation_can_win =
       moving.size() >= 2 && moving.size() >= kTranslationGain * out.rotation_inliers;
   if (translation_can_win) {
+    prepareCounting(m);
     SplitMix64 rng(seed ^ 0x5452414E534C4154ull);  // "TRANSLAT"
     // 2-point samples among the moving matches, stopped adaptively: once the best translation
     // explains a fraction w of them, log(0.01) / log(1 - w^2) samples find a clean pair with 99 %
@@ -426,8 +502,8 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
       const Eigen::Vector3d t_raw = normal(a).cross(normal(b));
       if (t_raw.norm() < 1e-9) continue;
       const Eigen::Vector3d t = t_raw.normalized();
-      const int beat = out.epipolar_inliers / static_cast<int>(sample_stride);
-      const int count = static_cast<int>(sample_stride) * countEpipolarInliers(m, t, threshold, sample_stride, beat);
+      const int beat = out.epipolar_inliers / sample_stride;
+      const int count = sample_stride * countEpipolarInliers(m, t, threshold, sampled, beat);
       if (count > out.epipolar_inliers) {
         out.epipolar_inliers = count;
         out.translation = t;
@@ -435,24 +511,33 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
         trials = std::clamp(static_cast<int>(std::ceil(std::log(0.01) / std::log(1.0 - w * w))), 8, 64);
       }
     }
-    if (!out.translation.isZero()) out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, 1, -1);
+    if (!out.translation.isZero())
+      out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
     // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
     // inliers (each normal scaled to its angular residual), repeated while the support grows.
+    const passes::MatchArrays arrays = matchArrays(m);
+    s.weights.resize(n);
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
-      // Scaled to its angular residual: the squared scale needs no square root.
-      Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-      const Eigen::Vector3d& t = out.translation;
+      // Scaled to its angular residual: the squared scale needs no square root. The weights (the
+      // squared scale of the inliers, zero for the others, which then add exact zeros) come from
+      // one vectorised pass; the sums run in index order. The eigensolver reads the lower triangle
+      // only, so only that is summed.
+      passes::passes().gateWeights(arrays, n, out.translation.data(), threshold * threshold, s.weights.data());
+      double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
       for (size_t i = 0; i < n; ++i) {
-        const double algebraic = t.x() * s.nx[i] + t.y() * s.ny[i] + t.z() * s.nz[i];
-        const double tp = t.x() * m.px[i] + t.y() * m.py[i] + t.z() * m.pz[i];
-        const double trc = t.x() * s.rx[i] + t.y() * s.ry[i] + t.z() * s.rz[i];
-        if (!s.usable[i] || !withinEpipolarGate(algebraic, tp, trc, threshold)) continue;
-        const double squared_scale = 1.0 / sampsonNorm2(tp, trc);
-        M.noalias() += (squared_scale * normal(i)) * normal(i).transpose();
+        const double sx = s.weights[i] * s.nx[i], sy = s.weights[i] * s.ny[i], sz = s.weights[i] * s.nz[i];
+        m00 += sx * s.nx[i];
+        m10 += sy * s.nx[i];
+        m11 += sy * s.ny[i];
+        m20 += sz * s.nx[i];
+        m21 += sz * s.ny[i];
+        m22 += sz * s.nz[i];
       }
+      Eigen::Matrix3d M;
+      M << m00, m10, m20, m10, m11, m21, m20, m21, m22;
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
       const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
-      const int count = countEpipolarInliers(m, refitted, threshold, 1, out.epipolar_inliers);
+      const int count = countEpipolarInliers(m, refitted, threshold, false, out.epipolar_inliers);
       if (count <= out.epipolar_inliers) break;
       out.epipolar_inliers = count;
       out.translation = refitted;

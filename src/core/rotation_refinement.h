@@ -21,18 +21,41 @@ class FrameMatches {
 
   /// Coordinates of the bearings in the previous (p*) and the current (c*) frame.
   std::vector<double> px, py, pz, cx, cy, cz;
+  /// px, py, pz split by index parity: those of even index from 0, those of odd index from
+  /// (size() + 1) / 2 (the translation counts' order when every match is usable).
+  std::vector<double> split_px, split_py, split_pz;
+  /// Every match as the summing passes read gathered ones (in the order passes::gatheredPosition
+  /// gives, padded with zero bearings to whole chunks); filled when first needed (all_gathered).
+  std::vector<double> all_px, all_py, all_pz, all_cx, all_cy, all_cz;
+  bool all_gathered = false;
 
   /// Scratch of the verification and refinement passes (contents undefined between calls).
   struct Scratch {
     std::vector<double> rx, ry, rz;  ///< R b_cur
     std::vector<double> nx, ny, nz;  ///< b_prev x R b_cur
-    std::vector<uint8_t> usable;     ///< b_prev and R b_cur in the same hemisphere
-    std::vector<uint32_t> indices;   ///< a subset of the matches (moving or gated ones)
+    /// b_prev . R b_cur: positive when both are in the same hemisphere (the match is usable).
+    std::vector<double> facing;
     std::vector<double> residuals;  ///< squared residuals (the adaptive gate's median)
-    /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur) and
-    /// padded with zero bearings to whole chunks of the pass.
+    /// Per-match results of the last pass over all matches (weights, squared residuals).
+    std::vector<double> weights;
+    /// The matches a refinement pass sums over, gathered contiguously (b_prev, then b_cur; in the
+    /// order passes::gatheredPosition gives) and padded with zero bearings to whole chunks.
     std::vector<double> gpx, gpy, gpz, gcx, gcy, gcz;
     size_t gathered = 0;  ///< matches gathered, without the padding
+    /// The rotation rx..facing belong to (valid when `rotated`): a pass at an unchanged rotation
+    /// is skipped.
+    Eigen::Matrix3d rotation;
+    bool rotated = false;
+    /// The usable matches at `rotation` as the translation counts read them (valid when
+    /// `counting`): those of even index from 0 (even_count of them), those of odd index from
+    /// odd_start (odd_count), each group in index order. `counted` points at the arrays: the q*
+    /// ones (n = b_prev x R b_cur, b_prev, R b_cur), or for b_prev the frame's split_p* when every
+    /// match is usable.
+    std::vector<double> qnx, qny, qnz, qpx, qpy, qpz, qrx, qry, qrz;
+    size_t even_count = 0, odd_start = 0, odd_count = 0;
+    bool counting = false;
+    const double* counted[9] = {};  ///< p x, y, z, then R b_cur, then n
+    std::vector<uint32_t> moving;  ///< matches a pure rotation does not explain (verification)
   };
   Scratch scratch;
 };

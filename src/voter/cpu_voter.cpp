@@ -1,11 +1,13 @@
 // The reference CPU voter: the gold implementation the CUDA backend is checked against bin for bin.
 // Deliberately free of Eigen and OpenCV so that cuda/'s stand-alone build (nvcc + CMake only) can
 // compile it next to the kernels.
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
 #include "hypothesis_voter.h"
+#include "triple_batch.h"
 
 namespace visual_gyro {
 
@@ -44,29 +46,40 @@ class CpuVoter : public HypothesisVoter {
     for (uint32_t& r : result->rejected) r = 0;
     result->device_ms = 0.0;
 
+    // The hypotheses are drawn and solved a chunk at a time (in SIMD lanes where the CPU can, the
+    // same rotations as one at a time) and binned in their order, so the per-cell sums add up in
+    // the same order either way.
+    constexpr int kChunk = 128;
+    uint32_t triples[kChunk][3];
+    int32_t solved[kChunk];
+    hyp::Mat3f rotations[kChunk];
     hyp::HypothesisRecord record;
-    for (uint32_t h = 0; h < request.hypotheses; ++h) {
-      const int32_t status = hyp::evaluateHypothesis(request.prev, request.cur, request.matches,
-                                                     request.seed, h, request.triple, request.grid,
-                                                     &record);
-      if (request.keep_records) result->records[h] = record;
-      if (status != hyp::kTripleOk) {
-        ++result->rejected[status];
-        continue;
-      }
-      ++result->accepted;
-      ++result->histogram[record.cell];
-      float* sum = &result->cell_sums[static_cast<size_t>(record.cell) * 3];
-      sum[0] += record.value[0];
-      sum[1] += record.value[1];
-      sum[2] += record.value[2];
-    }
+    // The winner is kept up to date vote by vote (no pass over the cells): the fullest cell, the
+    // lowest index among equally full ones.
     result->winner = -1;
     int32_t best = 0;
-    for (int32_t c = 0; c < cells; ++c) {
-      if (result->histogram[c] > best) {
-        best = result->histogram[c];
-        result->winner = c;
+    for (uint32_t first = 0; first < request.hypotheses; first += kChunk) {
+      const int count = static_cast<int>(std::min<uint32_t>(kChunk, request.hypotheses - first));
+      hyp::drawTriples(request.seed, first, count, request.matches, triples);
+      hyp::solveTriples(request.prev, request.cur, triples, count, request.triple, solved, rotations);
+      for (int k = 0; k < count; ++k) {
+        const uint32_t h = first + k;
+        const int32_t status = hyp::binHypothesis(solved[k], rotations[k], request.grid, &record);
+        if (request.keep_records) result->records[h] = record;
+        if (status != hyp::kTripleOk) {
+          ++result->rejected[status];
+          continue;
+        }
+        ++result->accepted;
+        const int32_t votes = ++result->histogram[record.cell];
+        if (votes > best || (votes == best && record.cell < result->winner)) {
+          best = votes;
+          result->winner = record.cell;
+        }
+        float* sum = &result->cell_sums[static_cast<size_t>(record.cell) * 3];
+        sum[0] += record.value[0];
+        sum[1] += record.value[1];
+        sum[2] += record.value[2];
       }
     }
   }

@@ -83,25 +83,33 @@ VG_HD uint32_t scaleToRange(uint32_t word, uint32_t n) {
   return static_cast<uint32_t>((static_cast<uint64_t>(word) * n) >> 32);
 }
 
-/// Draws three distinct match indices in [0, n) for hypothesis `hypothesis` of a frame.
-/// Requires n >= 3. Deterministic in (seed, hypothesis, n).
-VG_HD void drawTriple(uint64_t seed, uint32_t hypothesis, uint32_t n, uint32_t idx[3]) {
-  const uint32_t counter[4] = {hypothesis, 0u, 0x76697375u /* "visu" */, 0x6779726fu /* "gyro" */};
-  uint32_t r[4];
-  philox4x32(counter, static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32), r);
+/// Three distinct indices in [0, n) from three random words (drawTriple's second half).
+VG_HD void drawFromWords(uint32_t r0, uint32_t r1, uint32_t r2, uint32_t n, uint32_t idx[3]) {
   // Sampling without replacement by skipping the indices already taken keeps the draw branch-light
   // and loop-free, which matters for warp divergence on the GPU.
-  uint32_t a = scaleToRange(r[0], n);
-  uint32_t b = scaleToRange(r[1], n - 1);
+  uint32_t a = scaleToRange(r0, n);
+  uint32_t b = scaleToRange(r1, n - 1);
   if (b >= a) ++b;
   const uint32_t lo = a < b ? a : b;
   const uint32_t hi = a < b ? b : a;
-  uint32_t c = scaleToRange(r[2], n - 2);
+  uint32_t c = scaleToRange(r2, n - 2);
   if (c >= lo) ++c;
   if (c >= hi) ++c;
   idx[0] = a;
   idx[1] = b;
   idx[2] = c;
+}
+
+/// Counter words of hypothesis h's Philox block (after the hypothesis index: "visu", "gyro").
+constexpr uint32_t kTripleCounterWord2 = 0x76697375u, kTripleCounterWord3 = 0x6779726fu;
+
+/// Draws three distinct match indices in [0, n) for hypothesis `hypothesis` of a frame.
+/// Requires n >= 3. Deterministic in (seed, hypothesis, n).
+VG_HD void drawTriple(uint64_t seed, uint32_t hypothesis, uint32_t n, uint32_t idx[3]) {
+  const uint32_t counter[4] = {hypothesis, 0u, kTripleCounterWord2, kTripleCounterWord3};
+  uint32_t r[4];
+  philox4x32(counter, static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32), r);
+  drawFromWords(r[0], r[1], r[2], n, idx);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -322,17 +330,22 @@ struct HypothesisRecord {
   int32_t cell;    ///< histogram cell, -1 when rejected or outside the window
 };
 
-/// Draws, solves and bins hypothesis `h`: the whole per-thread work of the voting RANSAC.
-/// Returns the TripleStatus (kTripleOutsideWindow when solved but not in the grid).
-VG_HD int32_t evaluateHypothesis(const Vec3f* prev, const Vec3f* cur, uint32_t n, uint64_t seed,
-                                 uint32_t h, const TripleOptions& opt, const VoteGrid& grid,
-                                 HypothesisRecord* out) {
+/// The bearings of hypothesis `h`'s triple (drawTriple) in the previous (tp) and current (tc) frame.
+VG_HD void loadTriple(const Vec3f* prev, const Vec3f* cur, uint32_t n, uint64_t seed, uint32_t h,
+                      Vec3f tp[3], Vec3f tc[3]) {
   uint32_t idx[3];
   drawTriple(seed, h, n, idx);
-  const Vec3f tp[3] = {prev[idx[0]], prev[idx[1]], prev[idx[2]]};
-  const Vec3f tc[3] = {cur[idx[0]], cur[idx[1]], cur[idx[2]]};
-  Mat3f R;
-  int32_t status = solveTripleRotation(tp, tc, opt, &R);
+  tp[0] = prev[idx[0]];
+  tp[1] = prev[idx[1]];
+  tp[2] = prev[idx[2]];
+  tc[0] = cur[idx[0]];
+  tc[1] = cur[idx[1]];
+  tc[2] = cur[idx[2]];
+}
+
+/// Bins a hypothesis given what solveTripleRotation returned for it (`status`, and R when
+/// kTripleOk). Returns the TripleStatus (kTripleOutsideWindow when solved but not in the grid).
+VG_HD int32_t binHypothesis(int32_t status, const Mat3f& R, const VoteGrid& grid, HypothesisRecord* out) {
   out->cell = -1;
   out->value[0] = out->value[1] = out->value[2] = 0.f;
   if (status != kTripleOk) return status;
@@ -342,6 +355,18 @@ VG_HD int32_t evaluateHypothesis(const Vec3f* prev, const Vec3f* cur, uint32_t n
   out->value[1] = voted.y;
   out->value[2] = voted.z;
   return out->cell >= 0 ? kTripleOk : kTripleOutsideWindow;
+}
+
+/// Draws, solves and bins hypothesis `h`: the whole per-thread work of the voting RANSAC.
+/// Returns the TripleStatus (kTripleOutsideWindow when solved but not in the grid).
+VG_HD int32_t evaluateHypothesis(const Vec3f* prev, const Vec3f* cur, uint32_t n, uint64_t seed,
+                                 uint32_t h, const TripleOptions& opt, const VoteGrid& grid,
+                                 HypothesisRecord* out) {
+  Vec3f tp[3], tc[3];
+  loadTriple(prev, cur, n, seed, h, tp, tc);
+  Mat3f R;
+  const int32_t status = solveTripleRotation(tp, tc, opt, &R);
+  return binHypothesis(status, R, grid, out);
 }
 
 }  // namespace hyp
