@@ -6,6 +6,8 @@
 // sumEpipolarAvx2).
 #include "match_passes.h"
 
+#include "cpu_features.h"
+
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
@@ -401,8 +403,7 @@ const PassTable kAvx2 = {rotateAvx2,      countAvx2,       weightsAvx2,   huberA
 
 const PassTable* detectAvx2() {
 #ifdef VG_MATCH_PASSES_AVX2
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return &kAvx2;
+  if (cpu_features::hasAvx2()) return &kAvx2;
 #endif
   return nullptr;
 }
