@@ -117,6 +117,31 @@ void residualsBaseline(const MatchArrays& m, size_t n, const double* t, double* 
 
 // The Jacobian rows and residuals of the epipolar cost, summed by chunks of array expressions
 // (vectorised by Eigen); the gathered matches in index order.
+/// One chunk's rotated current bearings R b_cur, epipolar normals n = b_prev x R b_cur, Sampson
+/// scales and normalised residuals r = (t . n) * scale (R row-major, t the unit translation).
+struct EpipolarChunk {
+  using Chunk = Eigen::Array<double, kChunk, 1>;
+  Chunk rx, ry, rz, nx, ny, nz, scale, r;
+};
+
+EpipolarChunk epipolarChunk(const double* gpx, const double* gpy, const double* gpz, const double* gcx,
+                            const double* gcy, const double* gcz, size_t start, const double* R_, const double* t) {
+  using Chunk = EpipolarChunk::Chunk;
+  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(R_);
+  const double tx = t[0], ty = t[1], tz = t[2];
+  const Eigen::Map<const Chunk> px(gpx + start), py(gpy + start), pz(gpz + start);
+  const Eigen::Map<const Chunk> cx(gcx + start), cy(gcy + start), cz(gcz + start);
+  EpipolarChunk e;
+  e.rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
+  e.ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
+  e.rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
+  e.nx = py * e.rz - pz * e.ry, e.ny = pz * e.rx - px * e.rz, e.nz = px * e.ry - py * e.rx;
+  const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * e.rx + ty * e.ry + tz * e.rz;
+  e.scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
+  e.r = (tx * e.nx + ty * e.ny + tz * e.nz) * e.scale;
+  return e;
+}
+
 void sumEpipolarBaseline(const double* gpx, const double* gpy, const double* gpz, const double* gcx,
                          const double* gcy, const double* gcz, size_t count, const double* R_, const double* t,
                          const double* B_, double gate, bool tukey, EpipolarSums* sums) {
@@ -129,15 +154,10 @@ void sumEpipolarBaseline(const double* gpx, const double* gpy, const double* gpz
   for (size_t start = 0; start < count; start += kChunk) {
     const int len = static_cast<int>(std::min<size_t>(kChunk, count - start));
     const Eigen::Map<const Chunk> px(gpx + start), py(gpy + start), pz(gpz + start);
-    const Eigen::Map<const Chunk> cx(gcx + start), cy(gcy + start), cz(gcz + start);
-    const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
-    const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
-    const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
-    const Chunk nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
     // Iteratively reweighted: the scale is held fixed within a step (Sampson's approximation).
-    const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
-    const Chunk scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
-    const Chunk r = (tx * nx + ty * ny + tz * nz) * scale;
+    const EpipolarChunk e = epipolarChunk(gpx, gpy, gpz, gcx, gcy, gcz, start, R_, t);
+    const Chunk &rx = e.rx, &ry = e.ry, &rz = e.rz, &nx = e.nx, &ny = e.ny, &nz = e.nz;
+    const Chunk &scale = e.scale, &r = e.r;
     Chunk w;
     if (tukey) {
       // Tukey's biweight with cut-off `gate`: matches near the gate, most likely wrong ones that
@@ -167,19 +187,9 @@ void sumEpipolarBaseline(const double* gpx, const double* gpy, const double* gpz
 double tukeyCostBaseline(const double* gpx, const double* gpy, const double* gpz, const double* gcx, const double* gcy,
                          const double* gcz, size_t count, const double* R_, const double* t, double gate) {
   using Chunk = Eigen::Array<double, kChunk, 1>;
-  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(R_);
-  const double tx = t[0], ty = t[1], tz = t[2];
   double cost = 0.0;
   for (size_t start = 0; start < count; start += kChunk) {
-    const Eigen::Map<const Chunk> px(gpx + start), py(gpy + start), pz(gpz + start);
-    const Eigen::Map<const Chunk> cx(gcx + start), cy(gcy + start), cz(gcz + start);
-    const Chunk rx = R(0, 0) * cx + R(0, 1) * cy + R(0, 2) * cz;
-    const Chunk ry = R(1, 0) * cx + R(1, 1) * cy + R(1, 2) * cz;
-    const Chunk rz = R(2, 0) * cx + R(2, 1) * cy + R(2, 2) * cz;
-    const Chunk nx = py * rz - pz * ry, ny = pz * rx - px * rz, nz = px * ry - py * rx;
-    const Chunk tp = tx * px + ty * py + tz * pz, trc = tx * rx + ty * ry + tz * rz;
-    const Chunk scale = (1.0 - 0.5 * (tp.square() + trc.square())).max(1e-6).sqrt().inverse();
-    const Chunk r = (tx * nx + ty * ny + tz * nz) * scale;
+    const Chunk r = epipolarChunk(gpx, gpy, gpz, gcx, gcy, gcz, start, R_, t).r;
     const Chunk u2 = (r * (1.0 / gate)).square();
     cost += gate * gate / 6.0 * (1.0 - (1.0 - u2.min(1.0)).cube()).sum();
   }
@@ -274,6 +284,44 @@ __attribute__((target("avx2"))) inline double sumLikeEigen(const __m256d v[8]) {
   return _mm_cvtsd_f64(_mm_add_sd(h, _mm_unpackhi_pd(h, h)));
 }
 
+// The rotation and translation broadcast to four lanes.
+struct MotionLanes {
+  __attribute__((target("avx2"))) MotionLanes(const double* R, const double* t) {
+    for (int i = 0; i < 9; ++i) r[i] = _mm256_set1_pd(R[i]);
+    for (int i = 0; i < 3; ++i) this->t[i] = _mm256_set1_pd(t[i]);
+  }
+  __m256d r[9], t[3];
+};
+
+// Four matches' rotated current bearing R b_cur, epipolar normal n = b_prev x R b_cur, Sampson
+// scale and normalised residual r = (t . n) * scale, each operation in the baseline's order.
+struct EpipolarLanes {
+  __m256d px, py, pz, rx, ry, rz, nx, ny, nz, scale, r;
+};
+
+__attribute__((target("avx2"))) inline EpipolarLanes epipolarLanes(const double* gpx, const double* gpy,
+                                                                   const double* gpz, const double* gcx,
+                                                                   const double* gcy, const double* gcz, size_t at,
+                                                                   const MotionLanes& m) {
+  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const __m256d* R = m.r;
+  const __m256d tx = m.t[0], ty = m.t[1], tz = m.t[2];
+  EpipolarLanes e;
+  e.px = _mm256_loadu_pd(gpx + at), e.py = _mm256_loadu_pd(gpy + at), e.pz = _mm256_loadu_pd(gpz + at);
+  const __m256d cx = _mm256_loadu_pd(gcx + at), cy = _mm256_loadu_pd(gcy + at), cz = _mm256_loadu_pd(gcz + at);
+  e.rx = add(add(mul(R[0], cx), mul(R[1], cy)), mul(R[2], cz));
+  e.ry = add(add(mul(R[3], cx), mul(R[4], cy)), mul(R[5], cz));
+  e.rz = add(add(mul(R[6], cx), mul(R[7], cy)), mul(R[8], cz));
+  e.nx = sub(mul(e.py, e.rz), mul(e.pz, e.ry)), e.ny = sub(mul(e.pz, e.rx), mul(e.px, e.rz));
+  e.nz = sub(mul(e.px, e.ry), mul(e.py, e.rx));
+  const __m256d tp = add(add(mul(tx, e.px), mul(ty, e.py)), mul(tz, e.pz));
+  const __m256d trc = add(add(mul(tx, e.rx), mul(ty, e.ry)), mul(tz, e.rz));
+  const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
+  e.scale = _mm256_div_pd(one, _mm256_sqrt_pd(norm2));
+  e.r = mul(add(add(mul(tx, e.nx), mul(ty, e.ny)), mul(tz, e.nz)), e.scale);
+  return e;
+}
+
 // sumEpipolarBaseline four matches per instruction, operation for operation (each product, sum
 // and quotient in the baseline's order), the sums in the baseline's order (sumLikeEigen). The
 // Tukey cost's reduction is not fully unrolled by Eigen (two running packets instead of a tree):
@@ -283,13 +331,11 @@ __attribute__((target("avx2"))) void sumEpipolarAvx2(const double* gpx, const do
                                                      size_t count, const double* R, const double* t, const double* B,
                                                      double gate, bool tukey, EpipolarSums* sums) {
   using Chunk = Eigen::Array<double, kChunk, 1>;
-  const __m256d r00 = _mm256_set1_pd(R[0]), r01 = _mm256_set1_pd(R[1]), r02 = _mm256_set1_pd(R[2]);
-  const __m256d r10 = _mm256_set1_pd(R[3]), r11 = _mm256_set1_pd(R[4]), r12 = _mm256_set1_pd(R[5]);
-  const __m256d r20 = _mm256_set1_pd(R[6]), r21 = _mm256_set1_pd(R[7]), r22 = _mm256_set1_pd(R[8]);
-  const __m256d tx = _mm256_set1_pd(t[0]), ty = _mm256_set1_pd(t[1]), tz = _mm256_set1_pd(t[2]);
+  const MotionLanes motion(R, t);
+  const __m256d tx = motion.t[0], ty = motion.t[1], tz = motion.t[2];
   const __m256d b00 = _mm256_set1_pd(B[0]), b10 = _mm256_set1_pd(B[1]), b20 = _mm256_set1_pd(B[2]);
   const __m256d b01 = _mm256_set1_pd(B[3]), b11 = _mm256_set1_pd(B[4]), b21 = _mm256_set1_pd(B[5]);
-  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const __m256d one = _mm256_set1_pd(1.0);
   const __m256d zero = _mm256_setzero_pd(), gate_v = _mm256_set1_pd(gate);
   const __m256d inverse_gate = _mm256_set1_pd(1.0 / gate);
   const __m256d sign = _mm256_set1_pd(-0.0);
@@ -299,19 +345,9 @@ __attribute__((target("avx2"))) void sumEpipolarAvx2(const double* gpx, const do
     __m256d squares[8], weights[8];
     Chunk u2_chunk;
     for (int k = 0; k < 8; ++k) {
-      const size_t at = start + 4 * k;
-      const __m256d px = _mm256_loadu_pd(gpx + at), py = _mm256_loadu_pd(gpy + at), pz = _mm256_loadu_pd(gpz + at);
-      const __m256d cx = _mm256_loadu_pd(gcx + at), cy = _mm256_loadu_pd(gcy + at), cz = _mm256_loadu_pd(gcz + at);
-      const __m256d rx = add(add(mul(r00, cx), mul(r01, cy)), mul(r02, cz));
-      const __m256d ry = add(add(mul(r10, cx), mul(r11, cy)), mul(r12, cz));
-      const __m256d rz = add(add(mul(r20, cx), mul(r21, cy)), mul(r22, cz));
-      const __m256d nx = sub(mul(py, rz), mul(pz, ry)), ny = sub(mul(pz, rx), mul(px, rz));
-      const __m256d nz = sub(mul(px, ry), mul(py, rx));
-      const __m256d tp = add(add(mul(tx, px), mul(ty, py)), mul(tz, pz));
-      const __m256d trc = add(add(mul(tx, rx), mul(ty, ry)), mul(tz, rz));
-      const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
-      const __m256d scale = _mm256_div_pd(one, _mm256_sqrt_pd(norm2));
-      const __m256d r = mul(add(add(mul(tx, nx), mul(ty, ny)), mul(tz, nz)), scale);
+      const EpipolarLanes e4 = epipolarLanes(gpx, gpy, gpz, gcx, gcy, gcz, start + 4 * k, motion);
+      const __m256d px = e4.px, py = e4.py, pz = e4.pz, rx = e4.rx, ry = e4.ry, rz = e4.rz;
+      const __m256d nx = e4.nx, ny = e4.ny, nz = e4.nz, scale = e4.scale, r = e4.r;
       __m256d w;
       if (tukey) {
         const __m256d ru = mul(r, inverse_gate);
@@ -362,29 +398,13 @@ __attribute__((target("avx2"))) double tukeyCostAvx2(const double* gpx, const do
                                                      const double* gcx, const double* gcy, const double* gcz,
                                                      size_t count, const double* R, const double* t, double gate) {
   using Chunk = Eigen::Array<double, kChunk, 1>;
-  const __m256d r00 = _mm256_set1_pd(R[0]), r01 = _mm256_set1_pd(R[1]), r02 = _mm256_set1_pd(R[2]);
-  const __m256d r10 = _mm256_set1_pd(R[3]), r11 = _mm256_set1_pd(R[4]), r12 = _mm256_set1_pd(R[5]);
-  const __m256d r20 = _mm256_set1_pd(R[6]), r21 = _mm256_set1_pd(R[7]), r22 = _mm256_set1_pd(R[8]);
-  const __m256d tx = _mm256_set1_pd(t[0]), ty = _mm256_set1_pd(t[1]), tz = _mm256_set1_pd(t[2]);
-  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const MotionLanes motion(R, t);
   const __m256d inverse_gate = _mm256_set1_pd(1.0 / gate);
   double cost = 0.0;
   for (size_t start = 0; start < count; start += kChunk) {
     Chunk u2_chunk;
     for (int k = 0; k < 8; ++k) {
-      const size_t at = start + 4 * k;
-      const __m256d px = _mm256_loadu_pd(gpx + at), py = _mm256_loadu_pd(gpy + at), pz = _mm256_loadu_pd(gpz + at);
-      const __m256d cx = _mm256_loadu_pd(gcx + at), cy = _mm256_loadu_pd(gcy + at), cz = _mm256_loadu_pd(gcz + at);
-      const __m256d rx = add(add(mul(r00, cx), mul(r01, cy)), mul(r02, cz));
-      const __m256d ry = add(add(mul(r10, cx), mul(r11, cy)), mul(r12, cz));
-      const __m256d rz = add(add(mul(r20, cx), mul(r21, cy)), mul(r22, cz));
-      const __m256d nx = sub(mul(py, rz), mul(pz, ry)), ny = sub(mul(pz, rx), mul(px, rz));
-      const __m256d nz = sub(mul(px, ry), mul(py, rx));
-      const __m256d tp = add(add(mul(tx, px), mul(ty, py)), mul(tz, pz));
-      const __m256d trc = add(add(mul(tx, rx), mul(ty, ry)), mul(tz, rz));
-      const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
-      const __m256d scale = _mm256_div_pd(one, _mm256_sqrt_pd(norm2));
-      const __m256d r = mul(add(add(mul(tx, nx), mul(ty, ny)), mul(tz, nz)), scale);
+      const __m256d r = epipolarLanes(gpx, gpy, gpz, gcx, gcy, gcz, start + 4 * k, motion).r;
       const __m256d ru = mul(r, inverse_gate);
       const __m256d u2 = mul(ru, ru);
       _mm_storeu_pd(u2_chunk.data() + 2 * k, _mm256_castpd256_pd128(u2));
