@@ -66,14 +66,16 @@ struct Circle {
 /// `after_half(best)` runs after each half's 8 arcs (see blockScores).
 template <bool kMaxOfMins, class T, class Get, class After>
 VG_FAST_INLINE T arcExtreme(const Get& x, const After& after_half) {
-  auto inner = [](const T& a, const T& b) -> T {
+  // Always inlined, like `x` in blockScores: a lambda does not take its caller's target (AVX2),
+  // so one left out of line (at -O1) would pass its vector results by a different ABI.
+  auto inner = [](const T& a, const T& b) __attribute__((always_inline)) -> T {
     if constexpr (kMaxOfMins) {
       return a < b ? a : b;
     } else {
       return a > b ? a : b;
     }
   };
-  auto outer = [](const T& a, const T& b) -> T {
+  auto outer = [](const T& a, const T& b) __attribute__((always_inline)) -> T {
     if constexpr (kMaxOfMins) {
       return a > b ? a : b;
     } else {
@@ -242,7 +244,7 @@ VG_FAST_INLINE bool blockScores(const uint8_t* p, const Circle& circle,
     return false;
   }
   const uint8_t* centre = p;
-  auto x = [&](int k) { return load<W>(circle.at(centre, k)); };
+  auto x = [&](int k) __attribute__((always_inline)) { return load<W>(circle.at(centre, k)); };
   // A lambda is inlined only when optimising; the asm needs its AVX2 caller's registers.
   auto sequence = [&](U8& best) __attribute__((always_inline)) { sequenceAfter(best, centre); };
   const U8 bright = subSat<W>(arcExtreme<true, U8>(x, sequence), v);
