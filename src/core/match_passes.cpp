@@ -217,12 +217,18 @@ __attribute__((target("avx2"))) inline __m256d add(__m256d x, __m256d y) { retur
 __attribute__((target("avx2"))) inline __m256d sub(__m256d x, __m256d y) { return _mm256_sub_pd(x, y); }
 __attribute__((target("avx2"))) inline __m256d mul(__m256d x, __m256d y) { return _mm256_mul_pd(x, y); }
 
+// sampsonNorm2 of four matches, operation for operation.
+__attribute__((target("avx2"))) inline __m256d sampsonNorm2Lanes(__m256d tp, __m256d trc) {
+  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  return _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
+}
+
 // weightsBaseline four matches per instruction. Written out: the compiler turns the plain loop's
 // 1 / max(x, 1e-6) into a branch around the division, which it then cannot vectorise.
 __attribute__((target("avx2"))) void weightsAvx2(const MatchArrays& m, size_t n, const double* t, double gate2,
                                                  double* w) {
   const __m256d tx = _mm256_set1_pd(t[0]), ty = _mm256_set1_pd(t[1]), tz = _mm256_set1_pd(t[2]);
-  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const __m256d one = _mm256_set1_pd(1.0);
   const __m256d gate2_v = _mm256_set1_pd(gate2), zero = _mm256_setzero_pd();
   size_t i = 0;
   for (; i + 4 <= n; i += 4) {
@@ -232,7 +238,7 @@ __attribute__((target("avx2"))) void weightsAvx2(const MatchArrays& m, size_t n,
                            mul(tz, _mm256_loadu_pd(m.pz + i)));
     const __m256d trc = add(add(mul(tx, _mm256_loadu_pd(m.rx + i)), mul(ty, _mm256_loadu_pd(m.ry + i))),
                             mul(tz, _mm256_loadu_pd(m.rz + i)));
-    const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
+    const __m256d norm2 = sampsonNorm2Lanes(tp, trc);
     const __m256d inside =
         _mm256_and_pd(_mm256_cmp_pd(_mm256_loadu_pd(m.facing + i), zero, _CMP_GT_OQ),
                       _mm256_cmp_pd(mul(algebraic, algebraic), mul(gate2_v, norm2), _CMP_LT_OQ));
@@ -303,7 +309,7 @@ __attribute__((target("avx2"))) inline EpipolarLanes epipolarLanes(const double*
                                                                    const double* gpz, const double* gcx,
                                                                    const double* gcy, const double* gcz, size_t at,
                                                                    const MotionLanes& m) {
-  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5), floor = _mm256_set1_pd(1e-6);
+  const __m256d one = _mm256_set1_pd(1.0);
   const __m256d* R = m.r;
   const __m256d tx = m.t[0], ty = m.t[1], tz = m.t[2];
   EpipolarLanes e;
@@ -316,7 +322,7 @@ __attribute__((target("avx2"))) inline EpipolarLanes epipolarLanes(const double*
   e.nz = sub(mul(e.px, e.ry), mul(e.py, e.rx));
   const __m256d tp = add(add(mul(tx, e.px), mul(ty, e.py)), mul(tz, e.pz));
   const __m256d trc = add(add(mul(tx, e.rx), mul(ty, e.ry)), mul(tz, e.rz));
-  const __m256d norm2 = _mm256_max_pd(sub(one, mul(half, add(mul(tp, tp), mul(trc, trc)))), floor);
+  const __m256d norm2 = sampsonNorm2Lanes(tp, trc);
   e.scale = _mm256_div_pd(one, _mm256_sqrt_pd(norm2));
   e.r = mul(add(add(mul(tx, e.nx), mul(ty, e.ny)), mul(tz, e.nz)), e.scale);
   return e;
