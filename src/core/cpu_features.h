@@ -27,5 +27,17 @@ inline bool hasAvx2() {
 #endif
 }
 
+/// True when the CPU has AVX-512 F and VL with VPOPCNTDQ (population count of 64-bit lanes), and
+/// the operating system saves the 512-bit registers (x86-64 only; false elsewhere).
+inline bool hasAvx512Popcnt() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+         __builtin_cpu_supports("avx512vpopcntdq");
+#else
+  return false;
+#endif
+}
+
 }  // namespace cpu_features
 }  // namespace visual_gyro

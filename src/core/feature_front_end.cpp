@@ -1,9 +1,11 @@
-// FAST corners with grid bucketing, BRIEF-256 descriptors and brute-force Hamming matching.
+// FAST corners with grid bucketing, BRIEF-256 descriptors, brute-force and guided Hamming matching
+// (the search kernels are in hamming_kernels.cpp).
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/random.h"
 #include "cpu_features.h"
 #include "fast_detector.h"
 #include "fixed_point_gaussian.h"
+#include "hamming_kernels.h"
 
 #include <algorithm>
 #include <cmath>
@@ -125,262 +127,6 @@ void sortKeysDescending(std::vector<uint64_t>* keys, std::vector<uint64_t>* scra
   keys->swap(*scratch);
 }
 
-constexpr int kNoMatch = -1;
-// Elements past the end of the guided grid's point and candidate arrays (one 8-lane vector).
-constexpr int kGuidedPad = 8;
-
-/// Brute-force search of every previous descriptor against every current one in a single pass:
-/// for each row the best and second-best distance, for each column the best row (for the
-/// cross-check). Always inlined, so it is compiled once per instruction set into the callers below
-/// (baseline x86-64 has no popcnt instruction and the software popcount is several times slower).
-__attribute__((always_inline)) inline void bruteForceKernel(const BriefDescriptor* prev, int n_prev,
-                                                            const BriefDescriptor* cur, int n_cur,
-                                                            int* row_best, int* row_best_d,
-                                                            int* row_second_d, int* col_best,
-                                                            int* col_best_d) {
-  for (int j = 0; j < n_cur; ++j) {
-    col_best[j] = kNoMatch;
-    col_best_d[j] = std::numeric_limits<int>::max();
-  }
-  for (int i = 0; i < n_prev; ++i) {
-    const uint64_t a0 = prev[i][0], a1 = prev[i][1], a2 = prev[i][2], a3 = prev[i][3];
-    int best = std::numeric_limits<int>::max(), second = std::numeric_limits<int>::max();
-    int best_j = kNoMatch;
-    for (int j = 0; j < n_cur; ++j) {
-      const BriefDescriptor& b = cur[j];
-      const int d = __builtin_popcountll(a0 ^ b[0]) + __builtin_popcountll(a1 ^ b[1]) +
-                    __builtin_popcountll(a2 ^ b[2]) + __builtin_popcountll(a3 ^ b[3]);
-      if (d < second) {
-        if (d < best) {
-          second = best;
-          best = d;
-          best_j = j;
-        } else {
-          second = d;
-        }
-      }
-      if (d < col_best_d[j]) {
-        col_best_d[j] = d;
-        col_best[j] = i;
-      }
-    }
-    row_best[i] = best_j;
-    row_best_d[i] = best;
-    row_second_d[i] = second;
-  }
-}
-
-using KernelFn = void (*)(const BriefDescriptor*, int, const BriefDescriptor*, int, int*, int*,
-                          int*, int*, int*);
-
-void bruteForceGeneric(const BriefDescriptor* prev, int n_prev, const BriefDescriptor* cur,
-                       int n_cur, int* row_best, int* row_best_d, int* row_second_d, int* col_best,
-                       int* col_best_d) {
-  bruteForceKernel(prev, n_prev, cur, n_cur, row_best, row_best_d, row_second_d, col_best,
-                   col_best_d);
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// Same kernel with the popcnt instruction enabled; used only when the CPU reports it (runtime
-// dispatch, so the binary still runs on any x86-64 and no -march flag is needed).
-__attribute__((target("popcnt"))) void bruteForcePopcnt(const BriefDescriptor* prev, int n_prev,
-                                                        const BriefDescriptor* cur, int n_cur,
-                                                        int* row_best, int* row_best_d,
-                                                        int* row_second_d, int* col_best,
-                                                        int* col_best_d) {
-  bruteForceKernel(prev, n_prev, cur, n_cur, row_best, row_best_d, row_second_d, col_best,
-                   col_best_d);
-}
-#endif
-
-/// Guided search: previous descriptor i against the current descriptors in the grid cells its
-/// window overlaps, kept when within the window's radius. The current keypoints are stored in
-/// row-major cell order, so the cells of one grid row that a window spans are one contiguous run:
-/// one loop per grid row, no per-cell overhead. Same bookkeeping as bruteForceKernel (row best and
-/// second best, column best), with columns in that sorted order. Inlined into one function per
-/// instruction set, like bruteForceKernel.
-struct GuidedGrid {
-  const int* start;                   // cell c holds sorted entries start[c] .. start[c + 1] - 1
-  const BriefDescriptor* descriptors;  // current descriptors in sorted order
-  const cv::Point2f* points;           // current keypoints in sorted order
-  int n;                               // number of current keypoints
-  int* inside;                         // room for n sorted indices (one window's candidates)
-  int cols, rows;
-  float cell_size;
-};
-
-/// Appends to `inside` (from *count on) the indices k in [begin, end) of the grid's points within
-/// sqrt(r2) of (px, py), in increasing order, one at a time without a branch (whether a candidate
-/// is inside is unpredictable).
-struct ScalarPositionTest {
-  __attribute__((always_inline)) void operator()(const cv::Point2f* points, int begin, int end, float px,
-                                                 float py, float r2, int* inside, int* count) const {
-    int n = *count;
-    for (int k = begin; k < end; ++k) {
-      const float dx = points[k].x - px, dy = points[k].y - py;
-      inside[n] = k;
-      n += !(dx * dx + dy * dy > r2);
-    }
-    *count = n;
-  }
-};
-
-template <class PositionTest>
-__attribute__((always_inline)) inline void guidedKernelBody(
-    const BriefDescriptor* prev, int n_prev, const cv::Point2f* predicted, const float* radii,
-    const GuidedGrid& grid, int* row_best, int* row_best_d, int* row_second_d, int* col_best,
-    int* col_best_d, PositionTest position_test) {
-  for (int k = 0; k < grid.n; ++k) {
-    col_best[k] = kNoMatch;
-    col_best_d[k] = std::numeric_limits<int>::max();
-  }
-  const float inv_cell = 1.0f / grid.cell_size;
-  for (int i = 0; i < n_prev; ++i) {
-    int best = std::numeric_limits<int>::max(), second = std::numeric_limits<int>::max();
-    int best_k = kNoMatch;
-    const float r = radii[i];
-    if (r >= 0.0f) {
-      const float px = predicted[i].x, py = predicted[i].y, r2 = r * r;
-      const int cx0 = std::max(0, static_cast<int>(std::floor((px - r) * inv_cell)));
-      const int cx1 = std::min(grid.cols - 1, static_cast<int>(std::floor((px + r) * inv_cell)));
-      const int cy0 = std::max(0, static_cast<int>(std::floor((py - r) * inv_cell)));
-      const int cy1 = std::min(grid.rows - 1, static_cast<int>(std::floor((py + r) * inv_cell)));
-      // First the candidates inside the circle (a cheap position test: the runs of whole cells
-      // also hold many outside it), then descriptors and bookkeeping only for those. They are
-      // collected without a branch: whether a candidate is inside is unpredictable.
-      int n_inside = 0;
-      for (int cy = cy0; cy <= cy1 && cx0 <= cx1; ++cy) {
-        position_test(grid.points, grid.start[cy * grid.cols + cx0], grid.start[cy * grid.cols + cx1 + 1], px,
-                      py, r2, grid.inside, &n_inside);
-      }
-      const uint64_t a0 = prev[i][0], a1 = prev[i][1], a2 = prev[i][2], a3 = prev[i][3];
-      for (int m = 0; m < n_inside; ++m) {
-        const int k = grid.inside[m];
-        const BriefDescriptor& b = grid.descriptors[k];
-        const int d = __builtin_popcountll(a0 ^ b[0]) + __builtin_popcountll(a1 ^ b[1]) +
-                      __builtin_popcountll(a2 ^ b[2]) + __builtin_popcountll(a3 ^ b[3]);
-        // Branch-free bookkeeping (the same result as the branches in bruteForceKernel: the
-        // first of equal distances stays best): which candidate wins is data-dependent and
-        // about as unpredictable as a coin, so compares and selects beat branches here.
-        second = std::min(second, std::max(best, d));
-        best_k = d < best ? k : best_k;
-        best = std::min(best, d);
-        const int old_d = col_best_d[k];
-        col_best[k] = d < old_d ? i : col_best[k];
-        col_best_d[k] = std::min(old_d, d);
-      }
-    }
-    row_best[i] = best_k;
-    row_best_d[i] = best;
-    row_second_d[i] = second;
-  }
-}
-
-using GuidedFn = void (*)(const BriefDescriptor*, int, const cv::Point2f*, const float*,
-                          const GuidedGrid&, int*, int*, int*, int*, int*);
-
-void guidedGeneric(const BriefDescriptor* prev, int n_prev, const cv::Point2f* predicted,
-                   const float* radii, const GuidedGrid& grid, int* row_best, int* row_best_d,
-                   int* row_second_d, int* col_best, int* col_best_d) {
-  guidedKernelBody(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
-                   col_best_d, ScalarPositionTest());
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-__attribute__((target("popcnt"))) void guidedPopcnt(const BriefDescriptor* prev, int n_prev,
-                                                    const cv::Point2f* predicted,
-                                                    const float* radii, const GuidedGrid& grid,
-                                                    int* row_best, int* row_best_d,
-                                                    int* row_second_d, int* col_best,
-                                                    int* col_best_d) {
-  guidedKernelBody(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
-                   col_best_d, ScalarPositionTest());
-}
-
-/// For each 8-bit mask, the positions of its set bits in increasing order (the rest 0): the
-/// permutation that packs the selected lanes of an 8-lane vector to its front.
-struct PackTable {
-  alignas(32) int32_t lanes[256][8];
-  PackTable() {
-    for (int mask = 0; mask < 256; ++mask) {
-      int n = 0;
-      for (int lane = 0; lane < 8; ++lane)
-        if (mask & (1 << lane)) lanes[mask][n++] = lane;
-      for (; n < 8; ++n) lanes[mask][n] = 0;
-    }
-  }
-};
-const PackTable kPackTable;
-
-/// ScalarPositionTest eight candidates at a time: the points' x and y deinterleaved, the squared
-/// distances compared in one instruction, and the indices of those inside packed to the front of
-/// a vector stored at the end of the list (the next store overwrites the lanes beyond the count).
-/// Reads up to 7 points past `end` and writes up to 7 indices past the count: matchGuided pads
-/// both arrays by kGuidedPad. A function of its own (called once per grid row of a window):
-/// AVX2 code cannot be inlined into the kernel's shared body.
-__attribute__((target("avx2"))) void positionTestAvx2(const cv::Point2f* points, int begin, int end, float px,
-                                                    float py, float r2, int* inside, int* count) {
-  const __m256 vx = _mm256_set1_ps(px), vy = _mm256_set1_ps(py), vr2 = _mm256_set1_ps(r2);
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i last = _mm256_set1_epi32(end - 1);
-  int n = *count;
-  for (int k = begin; k < end; k += 8) {
-    const float* xy = &points[k].x;
-    const __m256 a = _mm256_loadu_ps(xy), b = _mm256_loadu_ps(xy + 8);
-    // The shuffle gives x0 x1 x4 x5 | x2 x3 x6 x7; the 64-bit permute restores x0 .. x7.
-    const __m256 x = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(a, b, 0x88)), 0xD8));
-    const __m256 y = _mm256_castpd_ps(_mm256_permute4x64_pd(_mm256_castps_pd(_mm256_shuffle_ps(a, b, 0xDD)), 0xD8));
-    const __m256 dx = _mm256_sub_ps(x, vx), dy = _mm256_sub_ps(y, vy);
-    // The scalar test's rounding: each product rounded, then the sum (no fused multiply-add: the
-    // target does not enable FMA, so the compiler cannot contract these).
-    const __m256 d2 = _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy));
-    const __m256i index = _mm256_add_epi32(_mm256_set1_epi32(k), lane);
-    // !(d2 > r2), as the scalar test (true for NaN too), and only lanes before `end`.
-    const __m256 outside = _mm256_cmp_ps(d2, vr2, _CMP_GT_OQ);
-    const int in_run = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(index, last))) ^ 0xFF;
-    const int mask = (_mm256_movemask_ps(outside) ^ 0xFF) & in_run;
-    const __m256i packed = _mm256_permutevar8x32_epi32(
-        index, _mm256_load_si256(reinterpret_cast<const __m256i*>(kPackTable.lanes[mask])));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(inside + n), packed);
-    n += __builtin_popcount(static_cast<unsigned>(mask));
-  }
-  *count = n;
-}
-
-struct Avx2PositionTest {
-  __attribute__((always_inline)) void operator()(const cv::Point2f* points, int begin, int end, float px, float py,
-                                                 float r2, int* inside, int* count) const {
-    if (begin < end) positionTestAvx2(points, begin, end, px, py, r2, inside, count);
-  }
-};
-
-// The popcnt kernel with the position test eight candidates at a time; used only when the CPU
-// reports AVX2 (which every CPU with it pairs with popcnt).
-__attribute__((target("avx2,popcnt"))) void guidedAvx2(const BriefDescriptor* prev, int n_prev,
-                                                       const cv::Point2f* predicted, const float* radii,
-                                                       const GuidedGrid& grid, int* row_best, int* row_best_d,
-                                                       int* row_second_d, int* col_best, int* col_best_d) {
-  guidedKernelBody(prev, n_prev, predicted, radii, grid, row_best, row_best_d, row_second_d, col_best,
-                   col_best_d, Avx2PositionTest());
-}
-#endif
-
-// aarch64 has a vector popcount (cnt) in its baseline, which the compiler uses for
-// __builtin_popcountll without any flag: the generic kernels are the fast ones there.
-GuidedFn selectGuidedKernel() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (cpu_features::hasPopcnt() && cpu_features::hasAvx2()) return guidedAvx2;
-  if (cpu_features::hasPopcnt()) return guidedPopcnt;
-#endif
-  return guidedGeneric;
-}
-
-KernelFn selectKernel() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (cpu_features::hasPopcnt()) return bruteForcePopcnt;
-#endif
-  return bruteForceGeneric;
-}
 
 /// BRIEF bits from the gathered test pixels: bit i = first[i] < second[i] (both 16-byte aligned).
 BriefDescriptor compareTests(const uint8_t* first, const uint8_t* second) {
@@ -745,7 +491,7 @@ void collectMatches(const FrontEndSettings& settings, int n_prev, const int* row
   for (int i = 0; i < n_prev; ++i) {
     const int j = row_best[i];
     const int best = row_best_d[i];
-    if (j == kNoMatch || best > settings.max_hamming) continue;
+    if (j == hamming::kNoMatch || best > settings.max_hamming) continue;
     // Ratio test; with a single candidate there is no second best and nothing to be ambiguous with.
     const int second = row_second_d[i];
     if (second != std::numeric_limits<int>::max() && !(best < settings.max_ratio * second)) {
@@ -774,15 +520,16 @@ void FeatureFrontEnd::match(const FrameFeatures& previous, const FrameFeatures& 
   const int n_cur = static_cast<int>(current.descriptors.size());
   if (n_prev == 0 || n_cur == 0) return;
 
-  static const KernelFn kernel = selectKernel();
   Workspace& w = work_;
   w.row_best.resize(n_prev);
   w.row_best_d.resize(n_prev);
   w.row_second_d.resize(n_prev);
   w.col_best.resize(n_cur);
   w.col_best_d.resize(n_cur);
-  kernel(previous.descriptors.data(), n_prev, current.descriptors.data(), n_cur, w.row_best.data(),
-         w.row_best_d.data(), w.row_second_d.data(), w.col_best.data(), w.col_best_d.data());
+  const hamming::SearchTables tables{w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
+                                     w.col_best.data(), w.col_best_d.data()};
+  hamming::selectBruteForceKernel()(previous.descriptors.data(), n_prev, current.descriptors.data(), n_cur,
+                                    tables);
   collectMatches(settings_, n_prev, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
                  w.col_best.data(), nullptr, matches);
 }
@@ -845,7 +592,7 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
     max_x = std::max(max_x, p.x);
     max_y = std::max(max_y, p.y);
   }
-  GuidedGrid grid;
+  hamming::GuidedGrid grid;
   grid.cell_size = kCellSize;
   grid.cols = static_cast<int>(max_x / kCellSize) + 1;
   grid.rows = static_cast<int>(max_y / kCellSize) + 1;
@@ -862,9 +609,9 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
   for (size_t c = 0; c < n_cells; ++c) w.grid_start[c + 1] += w.grid_start[c];
   w.grid_cursor.assign(w.grid_start.begin(), w.grid_start.end() - 1);
   w.grid_items.resize(n_cur);
-  // Padded: the vectorised position test reads up to kGuidedPad - 1 points past a run's end (they
-  // are masked out) and stores up to that many indices past the list's end.
-  w.grid_points.resize(n_cur + kGuidedPad);
+  // Padded: the vector kernels read points past a run's end (masked out) and write candidate
+  // indices past the list's end (hamming::kGuidedPad).
+  w.grid_points.resize(n_cur + hamming::kGuidedPad);
   w.grid_descriptors.resize(n_cur);
   for (int j = 0; j < n_cur; ++j) {
     const int k = w.grid_cursor[cellOf(current.keypoints[j])]++;
@@ -875,18 +622,18 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
   grid.start = w.grid_start.data();
   grid.points = w.grid_points.data();
   grid.descriptors = w.grid_descriptors.data();
-  w.grid_inside.resize(n_cur + kGuidedPad);
+  w.grid_inside.resize(n_cur + hamming::kGuidedPad);
   grid.inside = w.grid_inside.data();
 
-  static const GuidedFn kernel = selectGuidedKernel();
   w.row_best.resize(n_prev);
   w.row_best_d.resize(n_prev);
   w.row_second_d.resize(n_prev);
   w.col_best.resize(n_cur);
   w.col_best_d.resize(n_cur);
-  kernel(previous.descriptors.data(), n_prev, prediction.positions.data(), prediction.radii.data(),
-         grid, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(), w.col_best.data(),
-         w.col_best_d.data());
+  const hamming::SearchTables tables{w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
+                                     w.col_best.data(), w.col_best_d.data()};
+  hamming::selectGuidedKernel()(previous.descriptors.data(), n_prev, prediction.positions.data(),
+                                prediction.radii.data(), grid, tables);
   collectMatches(settings_, n_prev, w.row_best.data(), w.row_best_d.data(), w.row_second_d.data(),
                  w.col_best.data(), w.grid_items.data(), matches);
 }

@@ -1,0 +1,78 @@
+// Hamming-distance search kernels of the front end's matching (internal to the core library; not
+// installed): brute force (every previous descriptor against every current one) and guided (each
+// previous descriptor against the current ones inside its search window). One kernel per
+// instruction set, chosen at run time; all give the same result bit for bit.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "visual_gyro/feature_front_end.h"
+
+namespace visual_gyro {
+namespace hamming {
+
+/// Row or column without a candidate.
+constexpr int kNoMatch = -1;
+/// Elements the caller adds past the end of GuidedGrid::points and GuidedGrid::inside: the
+/// vector kernels read points and write candidate indices up to this many places past a run's end.
+constexpr int kGuidedPad = 16;
+
+/// What a search produces, for collectMatches in the front end: for each previous descriptor i
+/// (row) the best current column row_best[i] (kNoMatch when none was compared), its distance
+/// row_best_d[i] and the second-best distance row_second_d[i] (INT_MAX when fewer than two were
+/// compared); for each current column j the previous row that came closest, col_best[j], at
+/// distance col_best_d[j]. Ties: the first in search order wins (the smaller column for a row, the
+/// smaller row for a column). Each array has room for its rows or columns.
+struct SearchTables {
+  int* row_best;
+  int* row_best_d;
+  int* row_second_d;
+  int* col_best;
+  int* col_best_d;
+};
+
+/// Brute force: row i is previous[i], column j is current[j].
+using BruteForceKernel = void (*)(const BriefDescriptor* previous, int n_previous,
+                                  const BriefDescriptor* current, int n_current,
+                                  const SearchTables& tables);
+
+/// The current keypoints sorted into square cells of a grid, row-major: cell c holds the sorted
+/// entries start[c] .. start[c + 1] - 1. The guided kernel's columns are these sorted entries.
+struct GuidedGrid {
+  const int* start;                    ///< cols * rows + 1 cell starts
+  const BriefDescriptor* descriptors;  ///< n descriptors in sorted order
+  const cv::Point2f* points;           ///< n keypoints [px] in sorted order, then kGuidedPad more
+  int n = 0;                           ///< number of current keypoints
+  int* inside;                         ///< working room for n + kGuidedPad indices
+  int cols = 0, rows = 0;
+  float cell_size = 1.f;  ///< [px]
+};
+
+/// Guided: row i, previous[i], is compared with the columns whose points lie within radii[i] of
+/// predicted[i] (squared distances in float, each product rounded, as
+/// !((x - px)^2 + (y - py)^2 > r^2)); none when radii[i] < 0.
+using GuidedKernel = void (*)(const BriefDescriptor* previous, int n_previous,
+                              const cv::Point2f* predicted, const float* radii,
+                              const GuidedGrid& grid, const SearchTables& tables);
+
+/// The instruction sets a kernel can be built for.
+enum class InstructionSet {
+  kPortable,  ///< plain C++ (any CPU; on aarch64 its population count is the vector cnt)
+  kPopcnt,    ///< x86-64 with the popcnt instruction
+  kAvx2,      ///< popcnt plus AVX2: guided kernel's position test eight points at a time
+  /// AVX-512 with VPOPCNTDQ: the guided kernel's distances and bookkeeping eight candidates at a time
+  kAvx512,
+};
+
+/// The brute-force kernel for `isa`, or nullptr when this build or this CPU cannot run it or there
+/// is no brute-force kernel of its own for it.
+BruteForceKernel bruteForceKernelFor(InstructionSet isa);
+/// The guided kernel for `isa`, or nullptr when this build or this CPU cannot run it.
+GuidedKernel guidedKernelFor(InstructionSet isa);
+
+/// The fastest kernels this CPU runs (chosen once).
+BruteForceKernel selectBruteForceKernel();
+GuidedKernel selectGuidedKernel();
+
+}  // namespace hamming
+}  // namespace visual_gyro
