@@ -247,8 +247,10 @@ __attribute__((target("avx2,popcnt"))) void guidedAvx2(const BriefDescriptor* pr
 #define VISUAL_GYRO_AVX512_TARGET "avx2,popcnt,avx512f,avx512vl,avx512vpopcntdq"
 // GCC 12's AVX-512 headers make their "undefined" vectors by self-initialisation, which
 // -Wmaybe-uninitialized reports wherever such an intrinsic is inlined.
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 
 /// ScalarPositionTest sixteen candidates at a time: the indices of those inside compressed to the
 /// front of a vector stored at the end of the list. Reads up to 15 points past `end` and writes
@@ -375,7 +377,9 @@ __attribute__((target(VISUAL_GYRO_AVX512_TARGET))) void guidedAvx512(const Brief
                                                                      const SearchTables& tables) {
   guidedKernelBody(prev, n_prev, predicted, radii, grid, tables, Avx512PositionTest(), Avx512CandidatePass());
 }
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
+#endif
 #endif
 
 }  // namespace
