@@ -477,8 +477,8 @@ TEST(EurocShake, SubpixelPositionsReduceTheErrorToKltLevel) {
   EXPECT_EQ(subpixel.at("invalid"), 0);
   EXPECT_LE(subpixel.at("rot_rmse_deg"), 0.6 * integer.at("rot_rmse_deg"));
   EXPECT_LE(subpixel.at("rot_max_deg"), 0.5 * integer.at("rot_max_deg"));
-  // Not yet at least as accurate as KLT in RMSE (within a quarter), but its worst frame is.
-  EXPECT_LE(subpixel.at("rot_rmse_deg"), 1.25 * klt.at("rot_rmse_deg"));
+  // Not yet at least as accurate as KLT in RMSE (within a tenth), but its worst frame is.
+  EXPECT_LE(subpixel.at("rot_rmse_deg"), 1.1 * klt.at("rot_rmse_deg"));
   EXPECT_LE(subpixel.at("rot_max_deg"), klt.at("rot_max_deg"));
 }
 
@@ -495,4 +495,11 @@ TEST(RenderedDim, BlurredJpegRoomHasEnoughMatchesForAnAccurateEstimate) {
   EXPECT_EQ(now.at("invalid"), 0);
   EXPECT_GE(now.at("matches_mean"), 300.0);
   EXPECT_LE(now.at("rot_rmse_deg"), 0.1);
+  // Motion blur moves FAST's corners off their content by up to a couple of pixels; sub-pixel
+  // alignment of the matches brings them back, and with them most of the error.
+  const Figures subpixel = evaluateVote(root + "/dim", "--set subpixel_refinement=true");
+  std::printf("dim, sub-pixel positions: vote RMSE / max %.4f / %.4f deg (integer: %.4f / %.4f deg)\n",
+              subpixel.at("rot_rmse_deg"), subpixel.at("rot_max_deg"), now.at("rot_rmse_deg"), now.at("rot_max_deg"));
+  EXPECT_EQ(subpixel.at("invalid"), 0);
+  EXPECT_LE(subpixel.at("rot_rmse_deg"), 0.3 * now.at("rot_rmse_deg"));
 }

@@ -495,21 +495,24 @@ cv::Mat shiftedBlobs(int width, int height, double shift_x, double shift_y) {
 }
 
 /// Matches i -> i between the corners of `previous` and the same corners moved by the integer
-/// part of the true shift (what descriptor matching would give), then refined.
+/// part of the true shift (what descriptor matching would give) plus `corner_error` whole pixels
+/// (a corner detected away from its content, as on blurred images), then refined.
 struct RefinedShift {
   size_t matches = 0, refined = 0;
   double median_error = 0.0;  // px, |refined displacement - true shift|
   double mean_x = 0.0, mean_y = 0.0;
 };
 
-RefinedShift refineKnownShift(const FeatureFrontEnd& front_end, double shift_x, double shift_y) {
+RefinedShift refineKnownShift(const FeatureFrontEnd& front_end, double shift_x, double shift_y,
+                              cv::Point2f corner_error = cv::Point2f(0.f, 0.f)) {
   const cv::Mat previous_image = shiftedBlobs(320, 240, 0.0, 0.0);
   const cv::Mat current_image = shiftedBlobs(320, 240, shift_x, shift_y);
   FrameFeatures previous, current;
   previous.keypoints = front_end.detect(previous_image);
   previous.descriptors.resize(previous.keypoints.size());
   for (const cv::Point2f& p : previous.keypoints) {
-    current.keypoints.emplace_back(p.x + std::round(shift_x), p.y + std::round(shift_y));
+    current.keypoints.emplace_back(p.x + std::round(shift_x) + corner_error.x,
+                                   p.y + std::round(shift_y) + corner_error.y);
   }
   current.descriptors.resize(current.keypoints.size());
   std::vector<FeatureMatch> matches;
@@ -552,6 +555,29 @@ TEST(SubpixelRefinement, RecoversKnownSubpixelShift) {
     EXPECT_NEAR(r.mean_x, shift.x, 0.02);
     EXPECT_NEAR(r.mean_y, shift.y, 0.02);
   }
+}
+
+// A matched corner up to two pixels (per axis) from where the previous corner's content lies
+// still converges to it; one further away is left at its integer position, not pulled to
+// whatever else lies nearby.
+TEST(SubpixelRefinement, RecoversCornersDetectedOffTheirContentWithinTwoPixels) {
+  FrontEndSettings settings;
+  settings.subpixel_refinement = true;
+  const FeatureFrontEnd front_end(settings);
+  for (const double sign : {1.0, -1.0}) {
+    // The correction the alignment must find is (1.3, -1.45) px, then (-1.3, 1.45) px.
+    const cv::Point2f error(static_cast<float>(-sign), static_cast<float>(sign));
+    const RefinedShift r = refineKnownShift(front_end, 0.3 * sign, -0.45 * sign, error);
+    std::printf("corner off by (%.0f, %.0f) px: %zu of %zu matches refined, median error %.3f px\n", error.x,
+                error.y, r.refined, r.matches, r.median_error);
+    ASSERT_GE(r.matches, 100u);
+    EXPECT_GE(r.refined, r.matches * 8 / 10);
+    EXPECT_LE(r.median_error, 0.05);
+  }
+  const RefinedShift far = refineKnownShift(front_end, 0.3, -0.45, cv::Point2f(3.f, 0.f));
+  std::printf("corner off by (3, 0) px: %zu of %zu matches refined\n", far.refined, far.matches);
+  ASSERT_GE(far.matches, 100u);
+  EXPECT_LE(far.refined, far.matches / 10);
 }
 
 TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {

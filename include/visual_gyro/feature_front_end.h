@@ -152,7 +152,7 @@ class FeatureFrontEnd {
   /// at most 4 iterations), so that current keypoint + offset is where the previous keypoint's
   /// content lies, to a fraction of a pixel. A match keeps offset zero when the patch has no
   /// corner structure (aperture problem), leaves the image, or the alignment moves it by more
-  /// than one pixel (it did not converge to the detected corner). Both images are CV_8UC1 of
+  /// than two pixels along x or y (it left the detected corner's neighbourhood). Both images are CV_8UC1 of
   /// one size (std::invalid_argument otherwise).
   void refineMatches(const cv::Mat& previous_gray, const cv::Mat& current_gray,
                      const FrameFeatures& previous, const FrameFeatures& current,
