@@ -15,8 +15,8 @@ namespace hamming {
 
 namespace {
 
+/// No distance yet (a row or column not compared).
 constexpr int kNone = std::numeric_limits<int>::max();
-
 
 /// Brute-force search of every previous descriptor against every current one in a single pass:
 /// for each row the best and second-best distance, for each column the best row (for the
