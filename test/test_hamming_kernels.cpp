@@ -55,44 +55,17 @@ struct Tables {
   }
 };
 
-/// Current keypoints sorted into a grid as the front end sorts them (counting sort, row-major
-/// cells), with the padding the vector kernels need.
+/// Current keypoints sorted into a grid by sortIntoGrid (as the front end sorts them), with the
+/// padding points made NaN (never inside a window) so reading them cannot matter.
 struct SortedGrid {
-  std::vector<int> start, inside;
+  std::vector<int> start, cursor, items, inside;
   std::vector<cv::Point2f> points;
   std::vector<BriefDescriptor> descriptors;
   hm::GuidedGrid grid;
 
-  SortedGrid(const std::vector<cv::Point2f>& keypoints, const std::vector<BriefDescriptor>& desc, float cell,
-             int cols, int rows) {
-    const int n = static_cast<int>(keypoints.size());
-    auto cellOf = [&](const cv::Point2f& p) {
-      const int cx = std::clamp(static_cast<int>(p.x / cell), 0, cols - 1);
-      const int cy = std::clamp(static_cast<int>(p.y / cell), 0, rows - 1);
-      return cy * cols + cx;
-    };
-    start.assign(cols * rows + 1, 0);
-    for (const cv::Point2f& p : keypoints) ++start[cellOf(p) + 1];
-    for (int c = 0; c < cols * rows; ++c) start[c + 1] += start[c];
-    std::vector<int> cursor(start.begin(), start.end() - 1);
-    // Padding filled with points far away and stale indices out of range would be a bug to read:
-    // NaN points (never inside) and indices the kernels must overwrite or ignore.
-    points.assign(n + hm::kGuidedPad, cv::Point2f(std::nanf(""), std::nanf("")));
-    descriptors.resize(n);
-    for (int j = 0; j < n; ++j) {
-      const int k = cursor[cellOf(keypoints[j])]++;
-      points[k] = keypoints[j];
-      descriptors[k] = desc[j];
-    }
-    inside.assign(n + hm::kGuidedPad, 0);
-    grid.start = start.data();
-    grid.points = points.data();
-    grid.descriptors = descriptors.data();
-    grid.n = n;
-    grid.inside = inside.data();
-    grid.cols = cols;
-    grid.rows = rows;
-    grid.cell_size = cell;
+  SortedGrid(const std::vector<cv::Point2f>& keypoints, const std::vector<BriefDescriptor>& desc, float cell) {
+    grid = hm::sortIntoGrid(keypoints, desc, cell, {&start, &cursor, &items, &inside, &points, &descriptors});
+    std::fill(points.begin() + grid.n, points.end(), cv::Point2f(std::nanf(""), std::nanf("")));
   }
 };
 
@@ -169,8 +142,7 @@ TEST(HammingKernels, PortableGuidedEqualsPlainSearch) {
   for (const float cell : {8.f, 16.f, 40.f}) {
     for (uint64_t seed = 1; seed <= 4; ++seed) {
       const GuidedCase c = makeCase(300, 400, 320.f, 240.f, 60.f, seed);
-      const int cols = static_cast<int>(320.f / cell) + 1, rows = static_cast<int>(240.f / cell) + 1;
-      SortedGrid g(c.keypoints, c.current, cell, cols, rows);
+      SortedGrid g(c.keypoints, c.current, cell);
       Tables got(300, 400);
       hm::guidedKernelFor(hm::InstructionSet::kPortable)(c.prev.data(), 300, c.predicted.data(), c.radii.data(),
                                                         g.grid, got.view());
@@ -209,8 +181,7 @@ TEST(HammingKernels, EveryGuidedKernelEqualsPortableBitForBit) {
     for (const Shape& s : shapes) {
       for (uint64_t seed = 11; seed <= 13; ++seed) {
         const GuidedCase c = makeCase(s.n_prev, s.n_cur, s.width, s.height, s.max_radius, seed);
-        const int cols = static_cast<int>(s.width / s.cell) + 1, rows = static_cast<int>(s.height / s.cell) + 1;
-        SortedGrid g(c.keypoints, c.current, s.cell, cols, rows);
+        SortedGrid g(c.keypoints, c.current, s.cell);
         Tables want(s.n_prev, s.n_cur), got(s.n_prev, s.n_cur);
         hm::guidedKernelFor(hm::InstructionSet::kPortable)(c.prev.data(), s.n_prev, c.predicted.data(),
                                                           c.radii.data(), g.grid, want.view());

@@ -582,48 +582,13 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
   const int n_cur = static_cast<int>(current.descriptors.size());
   if (n_prev == 0 || n_cur == 0) return;
 
-  // Grid index of the current keypoints: a counting sort into cells, row-major, with the
-  // keypoints and descriptors copied in that order. The cell size only trades grid rows visited
-  // against keypoints tested; the result does not depend on it.
+  // Grid index of the current keypoints. The cell size only trades grid rows visited against
+  // keypoints tested; the result does not depend on it.
   Workspace& w = work_;
   constexpr float kCellSize = 16.0f;
-  float max_x = 0.f, max_y = 0.f;
-  for (const cv::Point2f& p : current.keypoints) {
-    max_x = std::max(max_x, p.x);
-    max_y = std::max(max_y, p.y);
-  }
-  hamming::GuidedGrid grid;
-  grid.cell_size = kCellSize;
-  grid.cols = static_cast<int>(max_x / kCellSize) + 1;
-  grid.rows = static_cast<int>(max_y / kCellSize) + 1;
-  grid.n = n_cur;
-  const size_t n_cells = static_cast<size_t>(grid.cols) * grid.rows;
-  w.grid_start.assign(n_cells + 1, 0);
-  auto cellOf = [&](const cv::Point2f& p) {
-    // Keypoints from describe() lie inside the image; a negative one is clamped to the first cell.
-    const int cx = std::clamp(static_cast<int>(p.x / kCellSize), 0, grid.cols - 1);
-    const int cy = std::clamp(static_cast<int>(p.y / kCellSize), 0, grid.rows - 1);
-    return static_cast<size_t>(cy) * grid.cols + cx;
-  };
-  for (const cv::Point2f& p : current.keypoints) ++w.grid_start[cellOf(p) + 1];
-  for (size_t c = 0; c < n_cells; ++c) w.grid_start[c + 1] += w.grid_start[c];
-  w.grid_cursor.assign(w.grid_start.begin(), w.grid_start.end() - 1);
-  w.grid_items.resize(n_cur);
-  // Padded: the vector kernels read points past a run's end (masked out) and write candidate
-  // indices past the list's end (hamming::kGuidedPad).
-  w.grid_points.resize(n_cur + hamming::kGuidedPad);
-  w.grid_descriptors.resize(n_cur);
-  for (int j = 0; j < n_cur; ++j) {
-    const int k = w.grid_cursor[cellOf(current.keypoints[j])]++;
-    w.grid_items[k] = j;
-    w.grid_points[k] = current.keypoints[j];
-    w.grid_descriptors[k] = current.descriptors[j];
-  }
-  grid.start = w.grid_start.data();
-  grid.points = w.grid_points.data();
-  grid.descriptors = w.grid_descriptors.data();
-  w.grid_inside.resize(n_cur + hamming::kGuidedPad);
-  grid.inside = w.grid_inside.data();
+  const hamming::GuidedGrid grid = hamming::sortIntoGrid(
+      current.keypoints, current.descriptors, kCellSize,
+      {&w.grid_start, &w.grid_cursor, &w.grid_items, &w.grid_inside, &w.grid_points, &w.grid_descriptors});
 
   w.row_best.resize(n_prev);
   w.row_best_d.resize(n_prev);

@@ -102,7 +102,7 @@ struct ScalarPositionTest {
 
 /// Row i's distances to its listed candidates and the bookkeeping of bruteForceKernel (row best
 /// and second best, column best), one candidate at a time. `inside` holds n increasing column
-/// indices followed by kGuidedPad zeros.
+/// indices (and kGuidedPad more places of room).
 struct ScalarCandidatePass {
   __attribute__((always_inline)) void operator()(const BriefDescriptor& a, int i, const int* inside, int n,
                                                  const BriefDescriptor* descriptors, int* col_best,
@@ -156,8 +156,6 @@ __attribute__((always_inline)) inline void guidedKernelBody(const BriefDescripto
         position_test(grid.points, grid.start[cy * grid.cols + cx0], grid.start[cy * grid.cols + cx1 + 1], px,
                       py, r2, grid.inside, &n_inside);
       }
-      // The vector passes read whole vectors of indices; those past the list are valid columns.
-      std::fill(grid.inside + n_inside, grid.inside + n_inside + kGuidedPad, 0);
       candidate_pass(prev[i], i, grid.inside, n_inside, grid.descriptors, t.col_best, t.col_best_d, &best,
                      &second, &best_k);
     }
@@ -314,8 +312,10 @@ __attribute__((target(VISUAL_GYRO_AVX512_TARGET), always_inline)) inline __m512i
 /// of all lanes' best and second best (they include the two smallest of all). Column bookkeeping
 /// by gather and a masked scatter: the eight columns of a step are distinct.
 __attribute__((target(VISUAL_GYRO_AVX512_TARGET))) void candidatesAvx512(
-    const BriefDescriptor& a, int i, const int* inside, int n, const BriefDescriptor* descriptors, int* col_best,
+    const BriefDescriptor& a, int i, int* inside, int n, const BriefDescriptor* descriptors, int* col_best,
     int* col_best_d, int* best_out, int* second_out, int* best_k_out) {
+  // Whole steps of eight read indices past the list: zeros there name a valid column (masked out).
+  std::fill(inside + n, inside + n + 8, 0);
   const __m512i aa = _mm512_broadcast_i64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.data())));
   const __m256i none = _mm256_set1_epi32(kNone), row = _mm256_set1_epi32(i);
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -363,7 +363,7 @@ __attribute__((target(VISUAL_GYRO_AVX512_TARGET))) void candidatesAvx512(
 }
 
 struct Avx512CandidatePass {
-  __attribute__((always_inline)) void operator()(const BriefDescriptor& a, int i, const int* inside, int n,
+  __attribute__((always_inline)) void operator()(const BriefDescriptor& a, int i, int* inside, int n,
                                                  const BriefDescriptor* descriptors, int* col_best,
                                                  int* col_best_d, int* best, int* second, int* best_k) const {
     candidatesAvx512(a, i, inside, n, descriptors, col_best, col_best_d, best, second, best_k);
@@ -383,6 +383,48 @@ __attribute__((target(VISUAL_GYRO_AVX512_TARGET))) void guidedAvx512(const Brief
 #endif
 
 }  // namespace
+
+GuidedGrid sortIntoGrid(const std::vector<cv::Point2f>& keypoints,
+                        const std::vector<BriefDescriptor>& descriptors, float cell_size,
+                        const GridBuffers& b) {
+  const int n = static_cast<int>(keypoints.size());
+  float max_x = 0.f, max_y = 0.f;
+  for (const cv::Point2f& p : keypoints) {
+    max_x = std::max(max_x, p.x);
+    max_y = std::max(max_y, p.y);
+  }
+  GuidedGrid grid;
+  grid.cell_size = cell_size;
+  grid.cols = static_cast<int>(max_x / cell_size) + 1;
+  grid.rows = static_cast<int>(max_y / cell_size) + 1;
+  grid.n = n;
+  const size_t n_cells = static_cast<size_t>(grid.cols) * grid.rows;
+  b.start->assign(n_cells + 1, 0);
+  auto cellOf = [&](const cv::Point2f& p) {
+    const int cx = std::clamp(static_cast<int>(p.x / cell_size), 0, grid.cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y / cell_size), 0, grid.rows - 1);
+    return static_cast<size_t>(cy) * grid.cols + cx;
+  };
+  std::vector<int>& start = *b.start;
+  for (const cv::Point2f& p : keypoints) ++start[cellOf(p) + 1];
+  for (size_t c = 0; c < n_cells; ++c) start[c + 1] += start[c];
+  b.cursor->assign(start.begin(), start.end() - 1);
+  b.items->resize(n);
+  b.points->resize(n + kGuidedPad);
+  b.descriptors->resize(n);
+  for (int j = 0; j < n; ++j) {
+    const int k = (*b.cursor)[cellOf(keypoints[j])]++;
+    (*b.items)[k] = j;
+    (*b.points)[k] = keypoints[j];
+    (*b.descriptors)[k] = descriptors[j];
+  }
+  b.inside->resize(n + kGuidedPad);
+  grid.start = start.data();
+  grid.points = b.points->data();
+  grid.descriptors = b.descriptors->data();
+  grid.inside = b.inside->data();
+  return grid;
+}
 
 BruteForceKernel bruteForceKernelFor(InstructionSet isa) {
   switch (isa) {

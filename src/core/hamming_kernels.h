@@ -4,6 +4,8 @@
 // instruction set, chosen at run time; all give the same result bit for bit.
 #pragma once
 
+#include <vector>
+
 #include <opencv2/core.hpp>
 
 #include "visual_gyro/feature_front_end.h"
@@ -47,6 +49,23 @@ struct GuidedGrid {
   int cols = 0, rows = 0;
   float cell_size = 1.f;  ///< [px]
 };
+
+/// Where sortIntoGrid keeps a grid's arrays (the caller's vectors, reused from call to call).
+struct GridBuffers {
+  std::vector<int>* start;                    ///< GuidedGrid::start
+  std::vector<int>* cursor;                   ///< working room of the sort
+  std::vector<int>* items;                    ///< items[k]: the keypoint index of sorted entry k
+  std::vector<int>* inside;                   ///< GuidedGrid::inside
+  std::vector<cv::Point2f>* points;           ///< GuidedGrid::points
+  std::vector<BriefDescriptor>* descriptors;  ///< GuidedGrid::descriptors
+};
+
+/// Sorts `keypoints` (all at x, y >= 0; a negative coordinate counts as the first cell) and
+/// their descriptors into cells of cell_size px covering them: a counting sort, row-major, with
+/// the padding the kernels need. The grid refers to the buffers' vectors.
+GuidedGrid sortIntoGrid(const std::vector<cv::Point2f>& keypoints,
+                        const std::vector<BriefDescriptor>& descriptors, float cell_size,
+                        const GridBuffers& buffers);
 
 /// Guided: row i, previous[i], is compared with the columns whose points lie within radii[i] of
 /// predicted[i] (squared distances in float, each product rounded, as
