@@ -149,11 +149,11 @@ class FeatureFrontEnd {
   /// is set to zero). For each match, the (2 kRefineHalfWindow + 1)^2 patch of `previous_gray`
   /// around the previous keypoint is aligned with `current_gray` near the current keypoint by
   /// inverse-compositional Lucas-Kanade (translation, brightness offset removed, bilinear sampling,
-  /// at most 4 iterations), so that current keypoint + offset is where the previous keypoint's
+  /// at most 10 iterations), so that current keypoint + offset is where the previous keypoint's
   /// content lies, to a fraction of a pixel. A match keeps offset zero when the patch has no
-  /// corner structure (aperture problem), leaves the image, or the alignment moves it by more
-  /// than two pixels along x or y (it left the detected corner's neighbourhood). Both images are CV_8UC1 of
-  /// one size (std::invalid_argument otherwise).
+  /// corner structure (aperture problem), lies within kRefineHalfWindow + 3 px of the border, or
+  /// the alignment moves it by more than two pixels along x or y (it left the detected corner's
+  /// neighbourhood). Both images are CV_8UC1 of one size (std::invalid_argument otherwise).
   void refineMatches(const cv::Mat& previous_gray, const cv::Mat& current_gray,
                      const FrameFeatures& previous, const FrameFeatures& current,
                      std::vector<FeatureMatch>* matches) const;

@@ -6,6 +6,7 @@
 #include "fast_detector.h"
 #include "fixed_point_gaussian.h"
 #include "hamming_kernels.h"
+#include "patch_alignment.h"
 
 #include <algorithm>
 #include <cmath>
@@ -616,124 +617,37 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
     throw std::invalid_argument("FeatureFrontEnd::refineMatches: the images differ in size");
   }
   const int width = current_gray.cols, height = current_gray.rows;
-  constexpr int h = kRefineHalfWindow, side = 2 * h + 1, n = side * side;
-  // Rows are padded to a multiple of 4 floats (zero gradients in the padding), so the per-row
-  // loops have a fixed length the compiler turns into vector code; sums over a row are kept per
-  // column and added up once per iteration.
-  constexpr int stride = (side + 3) / 4 * 4;
-  constexpr int kIterations = 4;
-  constexpr float kConverged = 0.01f;  // px: an update this small ends the iterations
-  // px per axis: a larger correction has left the detected corner's neighbourhood. Not one pixel:
-  // on blurred images FAST places a corner up to a couple of pixels from where the previous
-  // patch's content lies (a fifth of euroc_mh01_shake's matches, most of a 3 px motion blur's), and
-  // those are the matches that need the alignment most; well inside the convergence range of
-  // an 11 x 11 window.
-  constexpr int kMaxShift = 2;
-  // The current pixels the iterations can sample (|d| <= kMaxShift, plus one for the bilinear
-  // neighbour, plus the padding), converted to float once per match.
-  constexpr int reach = h + kMaxShift + 1, span = stride + 2 * kMaxShift + 2;
-  // Template, its gradients and the inverse of the Gauss-Newton matrix, once per match
-  // (inverse compositional: the template's gradients serve every iteration).
-  alignas(16) std::array<float, side * stride> templ, gx, gy;
-  alignas(16) std::array<float, (2 * reach + 1) * span> window;
-  alignas(16) std::array<float, stride> acc_x, acc_y;
+  using patch_alignment::kMaxShift;
+  using patch_alignment::kStride;
+  constexpr int h = kRefineHalfWindow;
+  // A few more steps than inverse-compositional Lucas-Kanade usually needs: once the shift stays
+  // in one pixel cell a step costs no image access (alignPatch).
+  constexpr int kIterations = 10;
+  constexpr double kConverged = 0.01;  // px: an update this small ends the iterations
+  const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
+  const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
+  patch_alignment::PatchTemplate patch;
   for (FeatureMatch& m : *matches) {
     const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
     const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
     const int qx = static_cast<int>(std::lround(q.x)), qy = static_cast<int>(std::lround(q.y));
-    // Template pixels and their central differences inside the image; the current window, shifted
-    // by up to kMaxShift and sampled bilinearly, too (the padding columns are read as well).
-    if (px - h - 1 < 0 || py - h - 1 < 0 || px + h + 1 >= width || py + h + 1 >= height ||
-        qx - reach < 0 || qy - reach < 0 || qx - reach + span > width || qy + reach >= height) {
+    // The template and its central differences read one pixel around the patch and a row's
+    // padding to the right; the current patch moves by up to kMaxShift, plus one for the bilinear
+    // neighbour.
+    if (px - h - 1 < 0 || py - h - 1 < 0 || px - h + kStride >= width || py + h + 1 >= height ||
+        qx - h - kMaxShift < 0 || qy - h - kMaxShift < 0 || qx - h + kMaxShift + 1 + kStride > width ||
+        qy + h + kMaxShift + 1 >= height) {
       continue;
     }
-    float gx_mean = 0.f, gy_mean = 0.f;
-    for (int v = 0; v < side; ++v) {
-      const uint8_t* row = previous_gray.ptr<uint8_t>(py - h + v) + px - h;
-      const uint8_t* up = previous_gray.ptr<uint8_t>(py - h + v - 1) + px - h;
-      const uint8_t* down = previous_gray.ptr<uint8_t>(py - h + v + 1) + px - h;
-      float* t = &templ[v * stride];
-      float* ex = &gx[v * stride];
-      float* ey = &gy[v * stride];
-      for (int u = 0; u < side; ++u) {
-        t[u] = row[u];
-        ex[u] = 0.5f * (static_cast<float>(row[u + 1]) - static_cast<float>(row[u - 1]));
-        ey[u] = 0.5f * (static_cast<float>(down[u]) - static_cast<float>(up[u]));
-        gx_mean += ex[u];
-        gy_mean += ey[u];
-      }
+    build_template(previous_gray.ptr<uint8_t>(py - h) + px - h, previous_gray.step[0], &patch);
+    double dx = 0.0, dy = 0.0;
+    if (!patch_alignment::alignPatch(patch, current_gray.ptr<uint8_t>(qy - h) + qx - h, current_gray.step[0],
+                                     correlate, kIterations, kConverged, &dx, &dy)) {
+      continue;
     }
-    // The brightness offset between the frames is removed from the residual (its mean), which
-    // projects it out of the gradients as well: zero-mean gradients in the normal equations.
-    gx_mean /= n;
-    gy_mean /= n;
-    float hxx = 0.f, hxy = 0.f, hyy = 0.f;
-    for (int v = 0; v < side; ++v) {
-      for (int u = 0; u < stride; ++u) {
-        float& ex = gx[v * stride + u];
-        float& ey = gy[v * stride + u];
-        if (u < side) {
-          ex -= gx_mean;
-          ey -= gy_mean;
-        } else {
-          ex = ey = templ[v * stride + u] = 0.f;
-        }
-        hxx += ex * ex;
-        hxy += ex * ey;
-        hyy += ey * ey;
-      }
-    }
-    // Corner structure: both eigenvalues of the structure tensor well above zero. An edge (one
-    // small eigenvalue) leaves the position along it undetermined: no refinement.
-    const float det = hxx * hyy - hxy * hxy, trace = hxx + hyy;
-    if (!(trace > 0.f) || !(det > 0.01f * trace * trace)) continue;
-    const float ixx = hyy / det, ixy = -hxy / det, iyy = hxx / det;
-
-    for (int v = 0; v <= 2 * reach; ++v) {
-      const uint8_t* row = current_gray.ptr<uint8_t>(qy - reach + v) + qx - reach;
-      for (int u = 0; u < span; ++u) window[v * span + u] = row[u];
-    }
-    // Shift d of the current window: current content at q + d matches the template at p.
-    float dx = 0.f, dy = 0.f;
-    bool ok = true;
-    for (int it = 0; it < kIterations; ++it) {
-      const int ox = static_cast<int>(std::floor(dx)), oy = static_cast<int>(std::floor(dy));
-      const float fx = dx - ox, fy = dy - oy;
-      acc_x.fill(0.f);
-      acc_y.fill(0.f);
-      for (int v = 0; v < side; ++v) {
-        // Template row v (offset -h) against the current window at offset -h + d.
-        const float* r0 = &window[(v + oy + reach - h) * span + ox + reach - h];
-        const float* r1 = r0 + span;
-        const float* t = &templ[v * stride];
-        const float* ex = &gx[v * stride];
-        const float* ey = &gy[v * stride];
-        for (int u = 0; u < stride; ++u) {
-          const float top = r0[u] + fx * (r0[u + 1] - r0[u]);
-          const float bottom = r1[u] + fx * (r1[u + 1] - r1[u]);
-          const float e = top + fy * (bottom - top) - t[u];
-          acc_x[u] += ex[u] * e;
-          acc_y[u] += ey[u] * e;
-        }
-      }
-      float bx = 0.f, by = 0.f;
-      for (int u = 0; u < stride; ++u) {
-        bx += acc_x[u];
-        by += acc_y[u];
-      }
-      const float step_x = ixx * bx + ixy * by, step_y = ixy * bx + iyy * by;
-      dx -= step_x;
-      dy -= step_y;
-      if (!(std::abs(dx) <= static_cast<float>(kMaxShift) && std::abs(dy) <= static_cast<float>(kMaxShift))) {
-        ok = false;
-        break;
-      }
-      if (step_x * step_x + step_y * step_y < kConverged * kConverged) break;
-    }
-    if (!ok) continue;
     // Previous keypoint p sits at the rounded template centre plus its own fraction.
-    m.offset = cv::Point2f(static_cast<float>(qx) + dx + (p.x - static_cast<float>(px)) - q.x,
-                           static_cast<float>(qy) + dy + (p.y - static_cast<float>(py)) - q.y);
+    m.offset = cv::Point2f(static_cast<float>(qx + dx + (p.x - px) - q.x),
+                           static_cast<float>(qy + dy + (p.y - py) - q.y));
   }
 }
 

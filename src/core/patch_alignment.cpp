@@ -1,0 +1,206 @@
+#include "patch_alignment.h"
+
+#include <array>
+#include <cmath>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace visual_gyro {
+namespace patch_alignment {
+
+void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* patch) {
+  PatchTemplate& p = *patch;
+  p.sum_x = p.sum_y = p.sum_xx = p.sum_xy = p.sum_yy = p.sum_value = p.sum_x_value = p.sum_y_value = 0;
+  for (int v = 0; v < kSide; ++v) {
+    const uint8_t* row = top_left + v * step;
+    for (int u = 0; u < kStride; ++u) {
+      const int i = v * kStride + u;
+      const bool inside = u < kSide;
+      p.value[i] = static_cast<int16_t>(inside ? row[u] : 0);
+      p.grad_x[i] = static_cast<int16_t>(inside ? row[u + 1] - row[u - 1] : 0);
+      p.grad_y[i] = static_cast<int16_t>(inside ? row[u + step] - row[u - step] : 0);
+      const int32_t x = p.grad_x[i], y = p.grad_y[i], value = p.value[i];
+      p.sum_x += x;
+      p.sum_y += y;
+      p.sum_xx += x * x;
+      p.sum_xy += x * y;
+      p.sum_yy += y * y;
+      p.sum_value += value;
+      p.sum_x_value += x * value;
+      p.sum_y_value += y * value;
+    }
+  }
+}
+
+PatchCorrelation correlatePortable(const PatchTemplate& patch, const uint8_t* top_left, size_t step) {
+  PatchCorrelation c{0, 0, 0};
+  for (int v = 0; v < kSide; ++v) {
+    const uint8_t* row = top_left + v * step;
+    for (int u = 0; u < kSide; ++u) {
+      const int32_t intensity = row[u];
+      c.x += patch.grad_x[v * kStride + u] * intensity;
+      c.y += patch.grad_y[v * kStride + u] * intensity;
+      c.intensity += intensity;
+    }
+  }
+  return c;
+}
+
+#if defined(__SSE2__)
+namespace {
+
+int32_t horizontalSum(__m128i x) {
+  x = _mm_add_epi32(x, _mm_shuffle_epi32(x, _MM_SHUFFLE(1, 0, 3, 2)));
+  x = _mm_add_epi32(x, _mm_shuffle_epi32(x, _MM_SHUFFLE(2, 3, 0, 1)));
+  return _mm_cvtsi128_si32(x);
+}
+
+__m128i loadBytes(const uint8_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); }
+
+// A row is 16 pixels: the first 8 widened to 16 bits, then the other 8 with the columns past
+// kSide zeroed. Products of 16-bit pairs are summed pairwise into 32 bits (pmaddwd).
+void buildTemplateSse2(const uint8_t* top_left, size_t step, PatchTemplate* patch) {
+  static_assert(kSide > 8 && kSide <= 16, "the second half of a row holds kSide - 8 pixels");
+  const __m128i zero = _mm_setzero_si128(), ones = _mm_set1_epi16(1);
+  const __m128i high_half = _mm_srli_si128(_mm_set1_epi32(-1), 2 * (16 - kSide));
+  __m128i sx = zero, sy = zero, sxx = zero, sxy = zero, syy = zero, sv = zero, sxv = zero, syv = zero;
+  for (int v = 0; v < kSide; ++v) {
+    const uint8_t* row = top_left + v * step;
+    const __m128i centre = loadBytes(row), left = loadBytes(row - 1), right = loadBytes(row + 1);
+    const __m128i up = loadBytes(row - step), down = loadBytes(row + step);
+    for (int half = 0; half < 2; ++half) {
+      const auto widen = [&](__m128i x) {
+        return half == 0 ? _mm_unpacklo_epi8(x, zero) : _mm_and_si128(_mm_unpackhi_epi8(x, zero), high_half);
+      };
+      const __m128i value = widen(centre);
+      const __m128i x = _mm_sub_epi16(widen(right), widen(left));
+      const __m128i y = _mm_sub_epi16(widen(down), widen(up));
+      const int i = v * kStride + 8 * half;
+      _mm_store_si128(reinterpret_cast<__m128i*>(&patch->value[i]), value);
+      _mm_store_si128(reinterpret_cast<__m128i*>(&patch->grad_x[i]), x);
+      _mm_store_si128(reinterpret_cast<__m128i*>(&patch->grad_y[i]), y);
+      sx = _mm_add_epi32(sx, _mm_madd_epi16(x, ones));
+      sy = _mm_add_epi32(sy, _mm_madd_epi16(y, ones));
+      sxx = _mm_add_epi32(sxx, _mm_madd_epi16(x, x));
+      sxy = _mm_add_epi32(sxy, _mm_madd_epi16(x, y));
+      syy = _mm_add_epi32(syy, _mm_madd_epi16(y, y));
+      sv = _mm_add_epi32(sv, _mm_madd_epi16(value, ones));
+      sxv = _mm_add_epi32(sxv, _mm_madd_epi16(x, value));
+      syv = _mm_add_epi32(syv, _mm_madd_epi16(y, value));
+    }
+  }
+  patch->sum_x = horizontalSum(sx);
+  patch->sum_y = horizontalSum(sy);
+  patch->sum_xx = horizontalSum(sxx);
+  patch->sum_xy = horizontalSum(sxy);
+  patch->sum_yy = horizontalSum(syy);
+  patch->sum_value = horizontalSum(sv);
+  patch->sum_x_value = horizontalSum(sxv);
+  patch->sum_y_value = horizontalSum(syv);
+}
+
+PatchCorrelation correlateSse2(const PatchTemplate& patch, const uint8_t* top_left, size_t step) {
+  const __m128i zero = _mm_setzero_si128();
+  // The row's kSide pixels (the template's padding gradients are zero; the intensity sum needs
+  // the padding masked).
+  const __m128i row_bytes = _mm_srli_si128(_mm_set1_epi32(-1), 16 - kSide);
+  __m128i sx = zero, sy = zero, si = zero;
+  for (int v = 0; v < kSide; ++v) {
+    const __m128i bytes = loadBytes(top_left + v * step);
+    const __m128i low = _mm_unpacklo_epi8(bytes, zero), high = _mm_unpackhi_epi8(bytes, zero);
+    const __m128i* gx = reinterpret_cast<const __m128i*>(&patch.grad_x[v * kStride]);
+    const __m128i* gy = reinterpret_cast<const __m128i*>(&patch.grad_y[v * kStride]);
+    sx = _mm_add_epi32(sx, _mm_add_epi32(_mm_madd_epi16(gx[0], low), _mm_madd_epi16(gx[1], high)));
+    sy = _mm_add_epi32(sy, _mm_add_epi32(_mm_madd_epi16(gy[0], low), _mm_madd_epi16(gy[1], high)));
+    si = _mm_add_epi64(si, _mm_sad_epu8(_mm_and_si128(bytes, row_bytes), zero));
+  }
+  return {horizontalSum(sx), horizontalSum(sy),
+          _mm_cvtsi128_si32(si) + _mm_cvtsi128_si32(_mm_unpackhi_epi64(si, si))};
+}
+
+}  // namespace
+#endif
+
+TemplateKernel templateKernel() {
+#if defined(__SSE2__)
+  return buildTemplateSse2;
+#else
+  return buildTemplatePortable;
+#endif
+}
+
+CorrelationKernel correlationKernel() {
+#if defined(__SSE2__)
+  return correlateSse2;
+#else
+  return correlatePortable;
+#endif
+}
+
+bool alignPatch(const PatchTemplate& patch, const uint8_t* current_top_left, size_t step,
+                CorrelationKernel correlate, int iterations, double converged_px, double* dx_out,
+                double* dy_out) {
+  constexpr double n = kSide * kSide;
+  // The brightness offset between the frames is removed from the residual (its mean), which is
+  // the same as centring the gradients: the structure tensor of the zero-mean gradients, and
+  // b = sum g e - mean(g) sum e below. The integer sums keep the subtraction exact enough.
+  const double mean_x = patch.sum_x / n, mean_y = patch.sum_y / n;
+  const double hxx = patch.sum_xx - patch.sum_x * mean_x;
+  const double hxy = patch.sum_xy - patch.sum_x * mean_y;
+  const double hyy = patch.sum_yy - patch.sum_y * mean_y;
+  // Corner structure: both eigenvalues of the structure tensor well above zero. An edge (one
+  // small eigenvalue) leaves the position along it undetermined.
+  const double det = hxx * hyy - hxy * hxy, trace = hxx + hyy;
+  if (!(trace > 0.0) || !(det > 0.01 * trace * trace)) return false;
+  // The gradients are twice the derivative, so H and b are 4 and 2 times the derivative's: the
+  // step H'^-1 b' is 2 H^-1 b.
+  const double ixx = 2.0 * hyy / det, ixy = -2.0 * hxy / det, iyy = 2.0 * hxx / det;
+  const double template_x = patch.sum_x_value - mean_x * patch.sum_value;
+  const double template_y = patch.sum_y_value - mean_y * patch.sum_value;
+
+  // The residual e(u) = I(u + d) - T(u) samples I bilinearly, so b(d) = sum g e is the bilinear
+  // blend of b at the four integer shifts around d: each integer shift is correlated once and
+  // every later iteration in the same cell costs nothing.
+  constexpr int kShifts = 2 * kMaxShift + 2;  // -kMaxShift .. kMaxShift + 1 per axis
+  std::array<double, 2 * kShifts * kShifts> b_at;
+  std::array<bool, kShifts * kShifts> known{};
+  const auto bAt = [&](int ox, int oy) -> const double* {
+    const int k = (oy + kMaxShift) * kShifts + ox + kMaxShift;
+    if (!known[k]) {
+      const PatchCorrelation c =
+          correlate(patch, current_top_left + static_cast<std::ptrdiff_t>(oy) * static_cast<std::ptrdiff_t>(step) + ox,
+                    step);
+      b_at[2 * k] = c.x - mean_x * c.intensity - template_x;
+      b_at[2 * k + 1] = c.y - mean_y * c.intensity - template_y;
+      known[k] = true;
+    }
+    return &b_at[2 * k];
+  };
+  double dx = 0.0, dy = 0.0;
+  for (int it = 0; it < iterations; ++it) {
+    const int ox = static_cast<int>(std::floor(dx)), oy = static_cast<int>(std::floor(dy));
+    const double fx = dx - ox, fy = dy - oy;
+    const double weights[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+    const int corner_x[4] = {0, 1, 0, 1}, corner_y[4] = {0, 0, 1, 1};
+    double bx = 0.0, by = 0.0;
+    for (int c = 0; c < 4; ++c) {
+      if (weights[c] == 0.0) continue;  // an integer shift needs only the cells it touches
+      const double* b = bAt(ox + corner_x[c], oy + corner_y[c]);
+      bx += weights[c] * b[0];
+      by += weights[c] * b[1];
+    }
+    const double step_x = ixx * bx + ixy * by, step_y = ixy * bx + iyy * by;
+    dx -= step_x;
+    dy -= step_y;
+    if (!(std::abs(dx) <= kMaxShift && std::abs(dy) <= kMaxShift)) return false;
+    if (step_x * step_x + step_y * step_y < converged_px * converged_px) break;
+  }
+  *dx_out = dx;
+  *dy_out = dy;
+  return true;
+}
+
+}  // namespace patch_alignment
+}  // namespace visual_gyro

@@ -1,0 +1,69 @@
+// Sub-pixel alignment of a previous corner's patch with the current image (internal to the core
+// library; not installed): the kernels of FeatureFrontEnd::refineMatches. Every sum is an exact
+// integer sum, so the SSE2 kernels (x86-64's baseline) and the portable ones give the same result
+// bit for bit, whatever order they add in.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "visual_gyro/feature_front_end.h"
+
+namespace visual_gyro {
+namespace patch_alignment {
+
+/// Template side: (2 kRefineHalfWindow + 1) pixels.
+constexpr int kSide = 2 * kRefineHalfWindow + 1;
+/// Template row length in memory: kSide pixels, then zeros up to one 16-pixel vector.
+constexpr int kStride = 16;
+static_assert(kSide <= kStride, "a template row fits one 16-pixel vector");
+/// Largest correction per axis [px]: a larger one has left the detected corner's neighbourhood.
+constexpr int kMaxShift = 2;
+
+/// The previous corner's patch: intensities and unscaled central differences (twice the
+/// derivative: I(x+1) - I(x-1)), rows of kStride with zeros past kSide, and their sums over the
+/// patch (exact: at most 121 * 255 * 255 < 2^31).
+struct PatchTemplate {
+  alignas(16) int16_t value[kSide * kStride];
+  alignas(16) int16_t grad_x[kSide * kStride];
+  alignas(16) int16_t grad_y[kSide * kStride];
+  int32_t sum_x, sum_y;              ///< sum of grad_x, of grad_y
+  int32_t sum_xx, sum_xy, sum_yy;    ///< sums of the gradient products
+  int32_t sum_value;                 ///< sum of the intensities
+  int32_t sum_x_value, sum_y_value;  ///< sums of grad_x * value, grad_y * value
+};
+
+/// The template against the current patch at one integer shift: sums of grad_x * I, grad_y * I and
+/// of I over the template's kSide x kSide pixels.
+struct PatchCorrelation {
+  int32_t x, y, intensity;
+};
+
+/// Fills `patch` from the kSide x kSide pixels whose top-left is `top_left` (a row stride of
+/// `step` bytes). Reads one pixel around the patch, and kStride - kSide more to the right.
+using TemplateKernel = void (*)(const uint8_t* top_left, size_t step, PatchTemplate* patch);
+/// Correlates `patch` with the pixels whose top-left is `top_left` (reads kSide rows of kStride).
+using CorrelationKernel = PatchCorrelation (*)(const PatchTemplate& patch, const uint8_t* top_left,
+                                               size_t step);
+
+/// Plain loops: the reference every other kernel must match exactly.
+void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* patch);
+PatchCorrelation correlatePortable(const PatchTemplate& patch, const uint8_t* top_left, size_t step);
+
+/// The fastest kernels this build has (SSE2 on x86-64, else the portable ones).
+TemplateKernel templateKernel();
+CorrelationKernel correlationKernel();
+
+/// Translational inverse-compositional Lucas-Kanade: the shift d (|d| <= kMaxShift per axis) such
+/// that the current image at `current_top_left` + d looks like `patch`, with the brightness
+/// offset between the two removed. `current_top_left` is the unshifted patch's top-left; the
+/// pixels from kMaxShift above and left of it to kMaxShift + 1 below and right (plus the row
+/// padding) must be readable. Returns false when the patch has no corner structure (an edge
+/// or flat: the position along it is undetermined) or the alignment leaves the +-kMaxShift box.
+/// `iterations`: Gauss-Newton steps at most; `converged_px`: a step this short ends them.
+bool alignPatch(const PatchTemplate& patch, const uint8_t* current_top_left, size_t step,
+                CorrelationKernel correlate, int iterations, double converged_px, double* dx,
+                double* dy);
+
+}  // namespace patch_alignment
+}  // namespace visual_gyro

@@ -1,0 +1,130 @@
+// The sub-pixel alignment's kernels: the vector kernels this build uses give the portable ones'
+// integers exactly (template, gradients, every sum, every correlation), including the extreme
+// intensities where 16-bit products and 32-bit sums are closest to overflowing; and alignPatch
+// finds a known shift, and refuses an edge, a flat patch and a shift beyond its box.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "patch_alignment.h"
+
+namespace visual_gyro {
+namespace {
+
+namespace pa = patch_alignment;
+
+bool sameTemplate(const pa::PatchTemplate& a, const pa::PatchTemplate& b) {
+  return std::memcmp(a.value, b.value, sizeof(a.value)) == 0 &&
+         std::memcmp(a.grad_x, b.grad_x, sizeof(a.grad_x)) == 0 &&
+         std::memcmp(a.grad_y, b.grad_y, sizeof(a.grad_y)) == 0 && a.sum_x == b.sum_x && a.sum_y == b.sum_y &&
+         a.sum_xx == b.sum_xx && a.sum_xy == b.sum_xy && a.sum_yy == b.sum_yy && a.sum_value == b.sum_value &&
+         a.sum_x_value == b.sum_x_value && a.sum_y_value == b.sum_y_value;
+}
+
+// Random bytes, a checkerboard of 0 and 255 (the largest gradients and products) and a flat 255.
+std::vector<cv::Mat> kernelTestImages() {
+  cv::Mat noise(64, 64, CV_8UC1);
+  cv::RNG rng(11);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::Mat checker(64, 64, CV_8UC1);
+  for (int y = 0; y < checker.rows; ++y)
+    for (int x = 0; x < checker.cols; ++x) checker.at<uint8_t>(y, x) = ((x / 2 + y) % 2) ? 255 : 0;
+  return {noise, checker, cv::Mat(64, 64, CV_8UC1, cv::Scalar(255))};
+}
+
+TEST(PatchAlignmentKernels, VectorKernelsGiveThePortableIntegersExactly) {
+  int compared = 0;
+  for (const cv::Mat& image : kernelTestImages()) {
+    for (int y = 1; y + pa::kSide + 1 < image.rows; y += 3) {
+      for (int x = 1; x + pa::kStride + 1 < image.cols; x += 5) {
+        pa::PatchTemplate portable, vector;
+        std::memset(&portable, 0x5a, sizeof(portable));  // stale contents must not matter
+        std::memset(&vector, 0xa5, sizeof(vector));
+        pa::buildTemplatePortable(image.ptr<uint8_t>(y) + x, image.step[0], &portable);
+        pa::templateKernel()(image.ptr<uint8_t>(y) + x, image.step[0], &vector);
+        ASSERT_TRUE(sameTemplate(portable, vector)) << "template at (" << x << ", " << y << ")";
+        // Correlate against a few other places of the image, as the alignment's shifts do.
+        for (const cv::Point offset : {cv::Point(0, 0), cv::Point(-1, 2), cv::Point(3, -1)}) {
+          const int cx = std::min(std::max(x + offset.x, 0), image.cols - pa::kStride);
+          const int cy = std::min(std::max(y + offset.y, 0), image.rows - pa::kSide);
+          const uint8_t* top_left = image.ptr<uint8_t>(cy) + cx;
+          const pa::PatchCorrelation a = pa::correlatePortable(portable, top_left, image.step[0]);
+          const pa::PatchCorrelation b = pa::correlationKernel()(vector, top_left, image.step[0]);
+          ASSERT_EQ(a.x, b.x);
+          ASSERT_EQ(a.y, b.y);
+          ASSERT_EQ(a.intensity, b.intensity);
+          ++compared;
+        }
+      }
+    }
+  }
+  std::printf("%d template/correlation pairs compared\n", compared);
+  EXPECT_GT(compared, 500);
+}
+
+// A smooth random pattern sampled at a sub-pixel shift.
+cv::Mat blobPattern(double shift_x, double shift_y) {
+  cv::Mat_<float> value(48, 48, 120.f);
+  cv::RNG rng(5);
+  for (int b = 0; b < 40; ++b) {
+    const double bx = rng.uniform(0.0, 48.0), by = rng.uniform(0.0, 48.0), sigma = rng.uniform(1.5, 4.0);
+    const double amplitude = rng.uniform(-80.0, 80.0);
+    for (int y = 0; y < value.rows; ++y)
+      for (int x = 0; x < value.cols; ++x) {
+        const double dx = x - shift_x - bx, dy = y - shift_y - by;
+        value(y, x) += static_cast<float>(amplitude * std::exp(-(dx * dx + dy * dy) / (2 * sigma * sigma)));
+      }
+  }
+  cv::Mat image;
+  value.convertTo(image, CV_8UC1);
+  return image;
+}
+
+TEST(PatchAlignment, FindsAKnownShiftWithEitherKernel) {
+  const cv::Mat previous = blobPattern(0.0, 0.0);
+  constexpr int kTop = 18, kLeft = 18;  // template's top-left: its centre at (23, 23)
+  for (const cv::Point2d shift : {cv::Point2d(0.37, -0.61), cv::Point2d(-1.4, 1.2), cv::Point2d(1.8, 0.2)}) {
+    // The same brightness offset everywhere: removed by the alignment.
+    const cv::Mat current = blobPattern(shift.x, shift.y) + cv::Scalar(9);
+    pa::PatchTemplate patch;
+    pa::templateKernel()(previous.ptr<uint8_t>(kTop) + kLeft, previous.step[0], &patch);
+    double dx[2], dy[2];
+    const pa::CorrelationKernel kernels[2] = {pa::correlatePortable, pa::correlationKernel()};
+    for (int k = 0; k < 2; ++k) {
+      ASSERT_TRUE(pa::alignPatch(patch, current.ptr<uint8_t>(kTop) + kLeft, current.step[0], kernels[k], 10,
+                                 0.001, &dx[k], &dy[k]));
+    }
+    std::printf("shift (%.2f, %.2f): found (%.3f, %.3f)\n", shift.x, shift.y, dx[0], dy[0]);
+    EXPECT_NEAR(dx[0], shift.x, 0.05);
+    EXPECT_NEAR(dy[0], shift.y, 0.05);
+    EXPECT_EQ(dx[0], dx[1]);
+    EXPECT_EQ(dy[0], dy[1]);
+  }
+}
+
+TEST(PatchAlignment, RefusesEdgesFlatPatchesAndShiftsBeyondItsBox) {
+  double dx = 0.0, dy = 0.0;
+  // A vertical edge: the position along it is undetermined.
+  cv::Mat edge(48, 48, CV_8UC1, cv::Scalar(40));
+  edge.colRange(24, 48).setTo(200);
+  pa::PatchTemplate patch;
+  pa::templateKernel()(edge.ptr<uint8_t>(18) + 18, edge.step[0], &patch);
+  EXPECT_FALSE(pa::alignPatch(patch, edge.ptr<uint8_t>(18) + 18, edge.step[0], pa::correlationKernel(), 10,
+                              0.01, &dx, &dy));
+  const cv::Mat flat(48, 48, CV_8UC1, cv::Scalar(90));
+  pa::templateKernel()(flat.ptr<uint8_t>(18) + 18, flat.step[0], &patch);
+  EXPECT_FALSE(pa::alignPatch(patch, flat.ptr<uint8_t>(18) + 18, flat.step[0], pa::correlationKernel(), 10,
+                              0.01, &dx, &dy));
+  // The content lies 4 px away, beyond the +-kMaxShift box.
+  const cv::Mat previous = blobPattern(0.0, 0.0), current = blobPattern(4.0, 0.0);
+  pa::templateKernel()(previous.ptr<uint8_t>(18) + 18, previous.step[0], &patch);
+  EXPECT_FALSE(pa::alignPatch(patch, current.ptr<uint8_t>(18) + 18, current.step[0], pa::correlationKernel(), 10,
+                              0.01, &dx, &dy));
+}
+
+}  // namespace
+}  // namespace visual_gyro
