@@ -120,6 +120,19 @@ for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blu
   run_eval front_end "${name}:klt" 0 "${folder}" --method vote --front-end klt
 done
 
+# 4c. Native against KLT over estimator seeds, frame by frame, where the two are closest: the
+#     shaken drone and the dim room (one seed's RMSE moves by a tenth either way there).
+seed_args=()
+[[ -d ${DATA_DIR}/euroc_mh01_shake ]] && seed_args+=("euroc_mh01_shake=${DATA_DIR}/euroc_mh01_shake")
+[[ -d ${dim_dir} ]] && seed_args+=("dim_blur3_jpeg75=${dim_dir}")
+if ((${#seed_args[@]} > 0)); then
+  t0=${SECONDS}
+  "${PY}" "${REPO_DIR}/scripts/front_end_seeds.py" --evaluate "${EVAL}" --out "${OUT}/front_end_seeds.md" \
+    "${seed_args[@]}" >"${OUT}/logs/front_end_seeds.log" 2>&1 ||
+    { echo "[bench] front_end_seeds failed; see ${OUT}/logs/front_end_seeds.log" >&2; }
+  echo "[bench] front ends over seeds in $((SECONDS - t0)) s"
+fi
+
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over
 #    matches (250..8 000 at 10 000 hypotheses), on the same real matches: kitti_turn with a denser
 #    front end (FAST threshold 8, up to 16 000 corners: ~3 400 matches a pair; beyond that the
@@ -153,4 +166,5 @@ machine="$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -1)
 echo
 cat "${OUT}/table.md"
 echo
+[[ -f ${OUT}/front_end_seeds.md ]] && { cat "${OUT}/front_end_seeds.md"; echo; }
 echo "[bench] machine: ${machine}; total $((SECONDS - start_all)) s; files in ${OUT}"
