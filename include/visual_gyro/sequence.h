@@ -15,17 +15,6 @@ struct GyroSample {
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< [rad/s], IMU (body) frame
 };
 
-/// Per-axis error [deg] of KITTI's OXTS RT3003 poses on one frame-to-frame rotation: the device's
-/// specified roll/pitch accuracy, and what every front end's per-frame error has in common on
-/// kitti_turn and kitti_straight (0.018-0.044 deg per axis RMS; README, "Covariance model").
-constexpr double kKittiPosesSigmaDeg = 0.03;
-/// Per-axis error [deg] of EuRoC's state_groundtruth_estimate0 on one 50 ms frame-to-frame
-/// rotation: its orientation between laser-tracker fixes is the ADIS16448's integrated rate, whose
-/// angle random walk (0.66 deg/sqrt(h)) gives 0.0025 deg in 50 ms.
-constexpr double kEurocPosesSigmaDeg = 0.0025;
-/// File of the KITTI layout that overrides kKittiPosesSigmaDeg (the renderer writes 0: exact).
-constexpr const char* kTruthSigmaFile = "truth_sigma_deg.txt";
-
 /// A sequence of grayscale images with whatever ground truth the folder holds.
 struct Sequence {
   std::string name;                ///< folder name, e.g. "kitti_turn"
@@ -44,12 +33,6 @@ struct Sequence {
   /// state_groundtruth_estimate0, preferred to the gyro), "gyro" (EuRoC imu0, bias included) or
   /// "" (none).
   std::string truth;
-  /// Standard deviation per axis [deg] of the ground truth's own error on one frame-to-frame
-  /// rotation: what the truth adds to an estimate's error, so the evaluation's NEES adds it to the
-  /// estimate's covariance (the estimate cannot know it). KITTI layout: `truth_sigma_deg.txt` (one
-  /// number) when present, else kKittiPosesSigmaDeg; EuRoC poses: kEurocPosesSigmaDeg; 0 without
-  /// pose truth.
-  double truth_sigma_deg = 0.0;
 
   bool hasPoses() const { return !orientations.empty(); }
   bool hasGyro() const { return !gyro.empty(); }

@@ -28,8 +28,7 @@ FrameErrors scoreFrame(const FrameEstimate& estimate, const FrameTruth& truth) {
     const Eigen::Vector3d error_vector = so3Log(error);
     e.error_vector_deg = error_vector * kRadToDeg;
     if (truth.from_poses && estimate.valid && estimate.has_covariance) {
-      const Eigen::Matrix3d seen = estimate.covariance + truth.sigma_rad * truth.sigma_rad * Eigen::Matrix3d::Identity();
-      const Eigen::FullPivLU<Eigen::Matrix3d> lu(seen);
+      const Eigen::FullPivLU<Eigen::Matrix3d> lu(estimate.covariance);
       if (lu.isInvertible()) e.nees = error_vector.dot(lu.solve(error_vector));
     }
   }

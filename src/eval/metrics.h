@@ -35,9 +35,6 @@ struct FrameTruth {
   /// The rotation comes from poses (not a biased gyro): only then does it judge a covariance.
   bool from_poses = false;
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
-  /// Standard deviation per axis [rad] of the truth's own rotation error: NEES judges the
-  /// estimate's covariance plus sigma^2 I, since the error it sees is the estimate's and the truth's.
-  double sigma_rad = 0.0;
   bool has_rate = false;
   Eigen::Vector3d rate = Eigen::Vector3d::Zero();  ///< mean angular velocity, camera frame [rad/s]
 };

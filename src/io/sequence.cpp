@@ -153,17 +153,6 @@ Sequence loadKitti(const fs::path& root) {
       fail(poses, std::to_string(seq.orientations.size()) + " poses for " + std::to_string(seq.image_paths.size()) +
                       " images");
     seq.truth = "kitti_poses";
-    seq.truth_sigma_deg = kKittiPosesSigmaDeg;
-    const fs::path sigma = root / kTruthSigmaFile;
-    if (fs::exists(sigma)) {
-      std::vector<double> v;
-      const auto sigma_lines = readLines(sigma);
-      std::string text;
-      for (const std::string& line : sigma_lines) text += line + " ";
-      if (!parseNumbers(text, &v) || v.size() != 1 || !std::isfinite(v[0]) || v[0] < 0.0)
-        fail(sigma, "expected one number, the truth's per-axis error [deg] (>= 0)");
-      seq.truth_sigma_deg = v[0];
-    }
   }
 
   const fs::path times = root / "times.txt";
@@ -331,7 +320,6 @@ void readEurocPoses(const fs::path& file, const Eigen::Vector3d& t_bs, Sequence*
     seq->positions.push_back(R0.transpose() * (camera_in_world[k] - p0));
   }
   seq->truth = "poses";
-  seq->truth_sigma_deg = kEurocPosesSigmaDeg;
 }
 
 Sequence loadEuroc(const fs::path& root) {
