@@ -4,6 +4,7 @@
 // finds a known shift, and refuses an edge, a flat patch and a shift beyond its box.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>

@@ -18,6 +18,9 @@ constexpr int kSide = 2 * kRefineHalfWindow + 1;
 constexpr int kStride = 16;
 static_assert(kSide <= kStride, "a template row fits one 16-pixel vector");
 /// Largest correction per axis [px]: a larger one has left the detected corner's neighbourhood.
+/// Two, not one: on blurred images FAST places a corner up to a couple of pixels from where the
+/// previous patch's content lies (a fifth of euroc_mh01_shake's matches, most of a 3 px motion
+/// blur's), and those matches need the alignment most; three let some converge on other structure.
 constexpr int kMaxShift = 2;
 
 /// The previous corner's patch: intensities and unscaled central differences (twice the
