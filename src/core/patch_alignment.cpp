@@ -12,6 +12,7 @@ namespace patch_alignment {
 
 void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* patch) {
   PatchTemplate& p = *patch;
+  const std::ptrdiff_t row_step = static_cast<std::ptrdiff_t>(step);
   p.sum_x = p.sum_y = p.sum_xx = p.sum_xy = p.sum_yy = p.sum_value = p.sum_x_value = p.sum_y_value = 0;
   for (int v = 0; v < kSide; ++v) {
     const uint8_t* row = top_left + v * step;
@@ -20,7 +21,7 @@ void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* 
       const bool inside = u < kSide;
       p.value[i] = static_cast<int16_t>(inside ? row[u] : 0);
       p.grad_x[i] = static_cast<int16_t>(inside ? row[u + 1] - row[u - 1] : 0);
-      p.grad_y[i] = static_cast<int16_t>(inside ? row[u + step] - row[u - step] : 0);
+      p.grad_y[i] = static_cast<int16_t>(inside ? row[u + row_step] - row[u - row_step] : 0);
       const int32_t x = p.grad_x[i], y = p.grad_y[i], value = p.value[i];
       p.sum_x += x;
       p.sum_y += y;
