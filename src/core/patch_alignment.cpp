@@ -19,10 +19,9 @@ void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* 
     for (int u = 0; u < kStride; ++u) {
       const int i = v * kStride + u;
       const bool inside = u < kSide;
-      p.value[i] = static_cast<int16_t>(inside ? row[u] : 0);
       p.grad_x[i] = static_cast<int16_t>(inside ? row[u + 1] - row[u - 1] : 0);
       p.grad_y[i] = static_cast<int16_t>(inside ? row[u + row_step] - row[u - row_step] : 0);
-      const int32_t x = p.grad_x[i], y = p.grad_y[i], value = p.value[i];
+      const int32_t x = p.grad_x[i], y = p.grad_y[i], value = inside ? row[u] : 0;
       p.sum_x += x;
       p.sum_y += y;
       p.sum_xx += x * x;
@@ -79,7 +78,6 @@ void buildTemplateSse2(const uint8_t* top_left, size_t step, PatchTemplate* patc
       const __m128i x = _mm_sub_epi16(widen(right), widen(left));
       const __m128i y = _mm_sub_epi16(widen(down), widen(up));
       const int i = v * kStride + 8 * half;
-      _mm_store_si128(reinterpret_cast<__m128i*>(&patch->value[i]), value);
       _mm_store_si128(reinterpret_cast<__m128i*>(&patch->grad_x[i]), x);
       _mm_store_si128(reinterpret_cast<__m128i*>(&patch->grad_y[i]), y);
       sx = _mm_add_epi32(sx, _mm_madd_epi16(x, ones));

@@ -23,11 +23,10 @@ static_assert(kSide <= kStride, "a template row fits one 16-pixel vector");
 /// blur's), and those matches need the alignment most; three let some converge on other structure.
 constexpr int kMaxShift = 2;
 
-/// The previous corner's patch: intensities and unscaled central differences (twice the
-/// derivative: I(x+1) - I(x-1)), rows of kStride with zeros past kSide, and their sums over the
-/// patch (exact: at most 121 * 255 * 255 < 2^31).
+/// The previous corner's patch: unscaled central differences (twice the derivative:
+/// I(x+1) - I(x-1)), rows of kStride with zeros past kSide, and the sums over the patch of them and
+/// of its intensities (exact: at most 121 * 255 * 255 < 2^31).
 struct PatchTemplate {
-  alignas(16) int16_t value[kSide * kStride];
   alignas(16) int16_t grad_x[kSide * kStride];
   alignas(16) int16_t grad_y[kSide * kStride];
   int32_t sum_x, sum_y;              ///< sum of grad_x, of grad_y
