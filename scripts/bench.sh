@@ -93,7 +93,7 @@ if [[ -f ${OUT}/rendered/forward/poses.txt ]]; then
 fi
 
 # 4b. Front ends on the same frames, vote only: the native front end with guided matching (integer
-#     and sub-pixel positions) and with global matching, the fixed-threshold global front end with integer positions it replaced
+#     and sub-pixel positions, and sub-pixel positions with tracking) and with global matching, the fixed-threshold global front end with integer positions it replaced
 #     (min_fast_threshold = fast_threshold, subpixel_refinement = false),
 #     OpenCV ORB + brute force and KLT; on the shared sequences and on the rendered dim room with
 #     3 px motion blur and JPEG 75 (also evaluated with every method).
@@ -114,6 +114,8 @@ for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blu
   fi
   run_eval front_end "${name}:guided" 0 "${folder}" --method vote
   run_eval front_end "${name}:subpixel" 0 "${folder}" --method vote --set subpixel_refinement=true
+  run_eval front_end "${name}:tracking" 0 "${folder}" --method vote --set subpixel_refinement=true \
+    --set track_unmatched=true
   run_eval front_end "${name}:global" 0 "${folder}" --method vote --set matching=global
   run_eval front_end "${name}:fixed_global" 0 "${folder}" --method vote --set matching=global --set min_fast_threshold=20 \
     --set subpixel_refinement=false

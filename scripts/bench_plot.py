@@ -31,7 +31,7 @@ METHOD_ORDER = ["vote", "paper", "essential5", "fundamental8", "opengv_rotation_
 CSV_FIELDS = ["group", "label", "x", "dataset", "method", "front_end", "matching", "backend", "frames", "invalid",
               "rot_rmse_deg", "rot_max_deg", "yaw_rmse_deg", "yaw_max_deg", "mean_rate_dps",
               "rate_rmse_dps", "ms_detect", "ms_describe", "ms_match", "ms_estimate", "ms_total",
-              "matches_mean", "outliers", "stride", "true_rot_mean_deg", "true_trans_mean_m", "truth",
+              "matches_mean", "tracked_mean", "outliers", "stride", "true_rot_mean_deg", "true_trans_mean_m", "truth",
               "nees_mean", "nees_beyond_99"]
 
 
@@ -90,6 +90,7 @@ def method_table(runs, methods, cell):
 
 FRONT_END_VARIANTS = [("guided", "native, guided matching"),
                       ("subpixel", "native, guided matching, sub-pixel positions"),
+                      ("tracking", "native, guided matching, sub-pixel positions, tracking"),
                       ("global", "native, global matching"),
                       ("fixed_global", "fixed FAST threshold, global matching (before)"),
                       ("orb", "OpenCV ORB + brute force"), ("klt", "goodFeaturesToTrack + pyramidal LK")]
@@ -124,7 +125,10 @@ def front_end_table(rows):
                 continue
             guided = (f"{r.get('guided_pairs', 0)} ({r.get('fallback_pairs', 0)})"
                       if r.get("matching") == "guided" else "-")
-            out.append(f"| {seq} | {name} | {fmt(r.get('matches_mean'), 0)} | {fmt(r.get('ms_detect'), 2)} | "
+            matches = fmt(r.get('matches_mean'), 0)
+            if num(r.get("tracked_mean", 0)) > 0:
+                matches += f" ({fmt(r.get('tracked_mean'), 0)} tracked)"
+            out.append(f"| {seq} | {name} | {matches} | {fmt(r.get('ms_detect'), 2)} | "
                        f"{fmt(r.get('ms_describe'), 2)} | {fmt(r.get('ms_match'), 2)} | {fmt(fe_ms(r), 2)} | "
                        f"{fmt(r.get('ms_estimate'), 2)} | {fmt(r.get('ms_total'), 2)} | "
                        f"{fmt(r['rot_rmse_deg'])} / {fmt(r['rot_max_deg'])} | {guided} |")
@@ -142,7 +146,10 @@ def front_end_table(rows):
                          f"{fmt(variants['fixed_global'].get('matches_mean'), 0)})")
         whole = f"; whole pipeline {fmt(num(g.get('ms_total')), 2)} ms"
         if "subpixel" in variants:
-            whole += f" ({fmt(num(variants['subpixel'].get('ms_total')), 2)} ms with sub-pixel positions)"
+            whole += f" ({fmt(num(variants['subpixel'].get('ms_total')), 2)} ms with sub-pixel positions"
+            if "tracking" in variants:
+                whole += f", {fmt(num(variants['tracking'].get('ms_total')), 2)} ms with tracking as well"
+            whole += ")"
         goals.append(f"- {seq}: " + "; ".join(parts) + whole)
     return out + ["", "Measured ratios (same run):\n"] + goals
 

@@ -21,6 +21,8 @@ import tempfile
 CONFIGS = [
     ("native, integer positions", ["--set", "subpixel_refinement=false"]),
     ("native, sub-pixel positions", ["--set", "subpixel_refinement=true"]),
+    ("native, sub-pixel positions and tracking",
+     ["--set", "subpixel_refinement=true", "--set", "track_unmatched=true"]),
     ("klt", ["--front-end", "klt"]),
 ]
 REFERENCE = "klt"

@@ -444,16 +444,21 @@ TEST(SharedSequences, NativeFrontEndAtLeastAsAccurateAsOrbAndKlt) {
       std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
       continue;
     }
+    // Integer positions (the default), and sub-pixel positions with tracking.
     const Figures native = evaluateVote(folder, "--front-end native");
+    const Figures tracking = evaluateVote(folder, "--set subpixel_refinement=true --set track_unmatched=true");
     // On euroc_v101_static the reference is the raw gyro with its bias, the same for every front end
     // (about 0.23 deg of rotation error each): a difference below 0.005 deg there is no difference.
     const double tolerance = std::string(name) == "euroc_v101_static" ? 0.005 : 0.0;
     for (const char* other : {"orb", "klt"}) {
       const Figures f = evaluateVote(folder, std::string("--front-end ") + other);
-      std::printf("%s: vote rotation RMSE native %.4f deg (%.0f matches), %s %.4f deg (%.0f matches)\n", name,
-                  native.at("rot_rmse_deg"), native.at("matches_mean"), other, f.at("rot_rmse_deg"),
-                  f.at("matches_mean"));
+      std::printf("%s: vote rotation RMSE native %.4f deg (%.0f matches), with sub-pixel positions and tracking "
+                  "%.4f deg (%.0f), %s %.4f deg (%.0f matches)\n",
+                  name, native.at("rot_rmse_deg"), native.at("matches_mean"), tracking.at("rot_rmse_deg"),
+                  tracking.at("matches_mean"), other, f.at("rot_rmse_deg"), f.at("matches_mean"));
       EXPECT_LE(native.at("rot_rmse_deg"), f.at("rot_rmse_deg") + tolerance) << name << " against " << other;
+      EXPECT_LE(tracking.at("rot_rmse_deg"), f.at("rot_rmse_deg") + tolerance)
+          << name << " against " << other << ", sub-pixel positions and tracking";
     }
     ++compared;
   }
@@ -477,9 +482,36 @@ TEST(EurocShake, SubpixelPositionsReduceTheErrorToKltLevel) {
   EXPECT_EQ(subpixel.at("invalid"), 0);
   EXPECT_LE(subpixel.at("rot_rmse_deg"), 0.6 * integer.at("rot_rmse_deg"));
   EXPECT_LE(subpixel.at("rot_max_deg"), 0.5 * integer.at("rot_max_deg"));
-  // Not yet at least as accurate as KLT in RMSE (within a tenth), but its worst frame is.
+  // Within a tenth of KLT in RMSE, and its worst frame is no worse.
   EXPECT_LE(subpixel.at("rot_rmse_deg"), 1.1 * klt.at("rot_rmse_deg"));
   EXPECT_LE(subpixel.at("rot_max_deg"), klt.at("rot_max_deg"));
+}
+
+// With tracking as well, the native front end is at least as accurate as KLT on the shaken drone.
+// One seed's RMSE moves by a tenth either way there (a few frames' pan lies in the
+// rotation/translation valley of the pallet), so both are compared over six estimator seeds.
+TEST(EurocShake, SubpixelPositionsAndTrackingAtLeastAsAccurateAsKlt) {
+  std::string why;
+  const std::string folder = sharedOrSkip("euroc_mh01_shake", &why);
+  if (folder.empty()) GTEST_SKIP() << why;
+  constexpr int kSeeds = 6;
+  double native_sum = 0.0, klt_sum = 0.0, native_worst = 0.0;
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    const std::string seeded = " --set seed=" + std::to_string(seed);
+    const Figures native =
+        evaluateVote(folder, "--set subpixel_refinement=true --set track_unmatched=true" + seeded);
+    const Figures klt = evaluateVote(folder, "--front-end klt" + seeded);
+    std::printf("euroc_mh01_shake, seed %d: vote RMSE %.4f deg native (%.0f matches), %.4f deg KLT\n", seed,
+                native.at("rot_rmse_deg"), native.at("matches_mean"), klt.at("rot_rmse_deg"));
+    EXPECT_EQ(native.at("invalid"), 0);
+    native_sum += native.at("rot_rmse_deg");
+    klt_sum += klt.at("rot_rmse_deg");
+    native_worst = std::max(native_worst, native.at("rot_rmse_deg"));
+  }
+  std::printf("mean over %d seeds: native %.4f deg, KLT %.4f deg\n", kSeeds, native_sum / kSeeds, klt_sum / kSeeds);
+  EXPECT_LE(native_sum, klt_sum);
+  // The tracked corners spread over the weak regions steady the pan: no seed is far off.
+  EXPECT_LE(native_worst, 1.1 * native_sum / kSeeds);
 }
 
 TEST(RenderedDim, BlurredJpegRoomHasEnoughMatchesForAnAccurateEstimate) {
@@ -502,4 +534,19 @@ TEST(RenderedDim, BlurredJpegRoomHasEnoughMatchesForAnAccurateEstimate) {
               subpixel.at("rot_rmse_deg"), subpixel.at("rot_max_deg"), now.at("rot_rmse_deg"), now.at("rot_max_deg"));
   EXPECT_EQ(subpixel.at("invalid"), 0);
   EXPECT_LE(subpixel.at("rot_rmse_deg"), 0.3 * now.at("rot_rmse_deg"));
+  // Most low-contrast corners are found by FAST in one frame only: tracking makes them count, and
+  // the roll (which needs many matches far from the centre) comes close to KLT's. The rendering is
+  // deterministic and so is this RMSE (no seed dependence).
+  const Figures tracking =
+      evaluateVote(root + "/dim", "--set subpixel_refinement=true --set track_unmatched=true");
+  const Figures klt = evaluateVote(root + "/dim", "--front-end klt");
+  std::printf("dim, sub-pixel positions and tracking: %.1f matches, vote RMSE / max %.4f / %.4f deg; KLT: %.1f "
+              "tracks, %.4f / %.4f deg\n",
+              tracking.at("matches_mean"), tracking.at("rot_rmse_deg"), tracking.at("rot_max_deg"),
+              klt.at("matches_mean"), klt.at("rot_rmse_deg"), klt.at("rot_max_deg"));
+  EXPECT_EQ(tracking.at("invalid"), 0);
+  EXPECT_GE(tracking.at("matches_mean"), 1.8 * subpixel.at("matches_mean"));
+  EXPECT_LE(tracking.at("rot_rmse_deg"), 0.97 * subpixel.at("rot_rmse_deg"));
+  // Not yet at least as accurate as KLT here (3-6 % behind with 25 or 40 frames): within a tenth.
+  EXPECT_LE(tracking.at("rot_rmse_deg"), 1.1 * klt.at("rot_rmse_deg"));
 }

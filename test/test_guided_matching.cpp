@@ -1,6 +1,7 @@
 // Front end for hard footage: guided matching against global matching on a rendered pair with a
 // known rotation, the fallback to global matching after a wrong prior, adaptive FAST thresholds on
-// low-contrast texture, the renderer's degradations and the settings' single source of truth.
+// low-contrast texture, tracking of unmatched corners, the renderer's degradations and the
+// settings' single source of truth.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -201,6 +202,135 @@ TEST(AdaptiveDetection, LowContrastCellsGetCornersAtTheFloorThreshold) {
   const std::vector<cv::Point2f> full_fixed = vg::FeatureFrontEnd(fixed_default).detect(image);
   ASSERT_EQ(full_fixed.size(), static_cast<size_t>(fixed_default.max_features));
   EXPECT_EQ(vg::FeatureFrontEnd(adaptive_default).detect(image), full_fixed);
+
+  // With tracking, the short cells get the floor pass even when the strong corners fill the
+  // budget: corners there no longer need FAST to find them again in the next frame.
+  vg::FrontEndSettings tracking_default;
+  tracking_default.track_unmatched = true;
+  const std::vector<cv::Point2f> full_tracking = vg::FeatureFrontEnd(tracking_default).detect(image);
+  std::printf("default budget, corners in the low-contrast half: %ld without tracking, %ld with\n",
+              rightCount(full_fixed), rightCount(full_tracking));
+  EXPECT_EQ(full_tracking.size(), static_cast<size_t>(tracking_default.max_features));
+  EXPECT_GE(rightCount(full_tracking), rightCount(full_fixed) + 24 * 15);
+}
+
+// Tracking: on a dim, JPEG-compressed room FAST finds many low-contrast corners in only one of two
+// frames, so they cannot match; tracking finds them where the true rotation puts them, to a
+// fraction of a pixel, and never a corner that already has a match.
+TEST(Tracking, FindsUnmatchedCornersWhereTheRotationPutsThem) {
+  vg::RenderSettings scene;
+  scene.preset = vg::RenderPreset::kDim;
+  scene.jpeg_quality = 75;
+  const vg::CameraModel camera = cameraOf(scene);
+  const Eigen::Matrix3d R0 = yawPitch(0.0, 0.0), R1 = yawPitch(1.0, -0.5);
+  const Eigen::Matrix3d truth = R0.transpose() * R1;
+  const cv::Mat image0 = vg::renderView(scene, R0, Eigen::Vector3d::Zero());
+  const cv::Mat image1 = vg::renderView(scene, R1, Eigen::Vector3d::Zero());
+
+  vg::FrontEndSettings settings;
+  settings.subpixel_refinement = true;
+  settings.track_unmatched = true;
+  const vg::FeatureFrontEnd front_end(settings);
+  const vg::FrameFeatures previous = front_end.describe(image0, front_end.detect(image0));
+  const vg::FrameFeatures current = front_end.describe(image1, front_end.detect(image1));
+  std::vector<vg::FeatureMatch> matches;
+  front_end.match(previous, current, &matches);
+  front_end.refineMatches(image0, image1, previous, current, &matches);
+  std::vector<vg::TrackedCorner> tracks;
+  front_end.trackUnmatched(image0, image1, previous, current, matches, &tracks);
+
+  std::set<int> matched, tracked;
+  for (const vg::FeatureMatch& m : matches) matched.insert(m.previous);
+  std::vector<double> errors;
+  for (const vg::TrackedCorner& t : tracks) {
+    EXPECT_EQ(matched.count(t.previous), 0u) << "corner " << t.previous << " is matched and tracked";
+    EXPECT_TRUE(tracked.insert(t.previous).second) << "corner " << t.previous << " tracked twice";
+    const cv::Point2f p = previous.keypoints[t.previous];
+    const Eigen::Vector2d expected = camera.project(truth.transpose() * camera.bearing(p.x, p.y));
+    errors.push_back(std::hypot(expected.x() - t.position.x, expected.y() - t.position.y));
+  }
+  ASSERT_FALSE(errors.empty());
+  // The yardstick: the descriptor matches' own sub-pixel positions on the same pair (2 grey levels
+  // of noise on at most 30 of contrast, and JPEG, limit both to a few tenths of a pixel).
+  std::vector<double> match_errors;
+  for (const vg::FeatureMatch& m : matches) {
+    const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current] + m.offset;
+    const Eigen::Vector2d expected = camera.project(truth.transpose() * camera.bearing(p.x, p.y));
+    match_errors.push_back(std::hypot(expected.x() - q.x, expected.y() - q.y));
+  }
+  std::sort(errors.begin(), errors.end());
+  std::sort(match_errors.begin(), match_errors.end());
+  const auto quantile = [](const std::vector<double>& sorted, int percent) {
+    return sorted[sorted.size() * percent / 100];
+  };
+  std::printf("%zu corners, %zu matches, %zu tracked; position error median / 95 %%: tracked %.3f / %.3f px, "
+              "matches %.3f / %.3f px\n",
+              previous.keypoints.size(), matches.size(), tracks.size(), quantile(errors, 50), quantile(errors, 95),
+              quantile(match_errors, 50), quantile(match_errors, 95));
+  // More corners tracked than matched, as precise as the matches, and a wrong track rarer than a
+  // wrong match (the correlation test).
+  EXPECT_GE(tracks.size(), matches.size());
+  EXPECT_LT(quantile(errors, 50), 1.2 * quantile(match_errors, 50));
+  EXPECT_LT(quantile(errors, 95), 1.0);
+  EXPECT_LT(quantile(errors, 95), quantile(match_errors, 95));
+
+  // Through the pipeline: the tracked corners join the matches and the rotation stays accurate.
+  vg::VisualGyroSettings pipeline = vg::test::cpuSettings();
+  pipeline.front_end = settings;
+  for (const bool track : {false, true}) {
+    pipeline.front_end.track_unmatched = track;
+    vg::VisualGyro gyro(camera, pipeline);
+    gyro.processFrame(image0, 1.0);
+    const vg::FrameResult result = gyro.processFrame(image1, 1.05);
+    ASSERT_TRUE(result.hasEstimate()) << result.reason;
+    const size_t expected_pairs = track ? matches.size() + tracks.size() : matches.size();
+    EXPECT_EQ(result.previous_bearings.size(), expected_pairs) << "tracking " << track;
+    EXPECT_EQ(result.current_pixels.size(), expected_pairs);
+    EXPECT_LT(vg::rotationAngleBetween(result.rotation.rotation, truth), 0.02 * kDeg) << "tracking " << track;
+  }
+}
+
+TEST(Tracking, OffOrWithoutMatchesTracksNothingAndBadInputThrows) {
+  vg::RenderSettings scene = roomScene();
+  const cv::Mat image0 = vg::renderView(scene, yawPitch(0.0, 0.0), Eigen::Vector3d::Zero());
+  const cv::Mat image1 = vg::renderView(scene, yawPitch(1.0, 0.0), Eigen::Vector3d::Zero());
+  vg::FrontEndSettings settings;
+  settings.track_unmatched = true;
+  const vg::FeatureFrontEnd tracking(settings);
+  const vg::FrameFeatures previous = tracking.describe(image0, tracking.detect(image0));
+  const vg::FrameFeatures current = tracking.describe(image1, tracking.detect(image1));
+  std::vector<vg::FeatureMatch> matches;
+  tracking.match(previous, current, &matches);
+  ASSERT_GE(matches.size(), 10u);
+  std::vector<vg::TrackedCorner> tracks(5);
+  tracking.trackUnmatched(image0, image1, previous, current, matches, &tracks);
+  EXPECT_FALSE(tracks.empty());
+
+  // Off: emptied, whatever the matches.
+  settings.track_unmatched = false;
+  tracks.assign(5, vg::TrackedCorner());
+  vg::FeatureFrontEnd(settings).trackUnmatched(image0, image1, previous, current, matches, &tracks);
+  EXPECT_TRUE(tracks.empty());
+  // Two matches say nothing about how the image moved: nothing tracked.
+  const std::vector<vg::FeatureMatch> two(matches.begin(), matches.begin() + 2);
+  tracks.assign(5, vg::TrackedCorner());
+  tracking.trackUnmatched(image0, image1, previous, current, two, &tracks);
+  EXPECT_TRUE(tracks.empty());
+
+  cv::Mat small;
+  cv::resize(image1, small, cv::Size(), 0.5, 0.5);
+  EXPECT_THROW(tracking.trackUnmatched(image0, small, previous, current, matches, &tracks), std::invalid_argument);
+  cv::Mat colour;
+  cv::cvtColor(image1, colour, cv::COLOR_GRAY2BGR);
+  EXPECT_THROW(tracking.trackUnmatched(image0, colour, previous, current, matches, &tracks), std::invalid_argument);
+  EXPECT_THROW(tracking.trackUnmatched(image0, cv::Mat(), previous, current, matches, &tracks), std::invalid_argument);
+  vg::FrameFeatures misaligned = current;
+  misaligned.descriptors.pop_back();
+  EXPECT_THROW(tracking.trackUnmatched(image0, image1, previous, misaligned, matches, &tracks), std::invalid_argument);
+  settings.track_unmatched = true;
+  settings.min_track_correlation = 2.0;
+  EXPECT_THROW(vg::FeatureFrontEnd(settings).trackUnmatched(image0, image1, previous, current, matches, &tracks),
+               std::invalid_argument);
 }
 
 TEST(RendererDegradations, ContrastBlurAndJpegChangeTheImageAsDocumented) {

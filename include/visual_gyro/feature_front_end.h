@@ -27,9 +27,9 @@ enum class MatchingMode {
 /// Settings of the front end. Ranges, units and docs: frontEndSettingFields().
 struct FrontEndSettings {
   int fast_threshold = 20;      ///< FAST intensity threshold (grey levels)
-  /// Adaptive detection: when the corners at fast_threshold cannot fill max_features, every grid
-  /// cell with fewer corners than its share is detected again with this lower threshold (grey
-  /// levels; >= fast_threshold turns it off).
+  /// Adaptive detection: when the corners at fast_threshold cannot fill max_features (or always,
+  /// with track_unmatched), every grid cell with fewer corners than its share is detected again
+  /// with this lower threshold (grey levels; >= fast_threshold turns it off).
   int min_fast_threshold = 5;
   int max_features = 1500;      ///< at most this many corners per frame
   int grid_cols = 8;            ///< bucketing grid: corners are spread over cols x rows cells
@@ -55,6 +55,12 @@ struct FrontEndSettings {
   /// FAST positions. Off by default: the estimator's covariance model is calibrated on integer
   /// positions (see the README's front-end section).
   bool subpixel_refinement = false;
+  /// Tracking of unmatched corners: each previous corner that found no descriptor match is looked
+  /// for by patch alignment where its cell's matches say it moved (trackUnmatched()).
+  bool track_unmatched = false;
+  /// A tracked corner is kept when the zero-mean normalised cross-correlation of its previous and
+  /// current 11 x 11 patches reaches this.
+  double min_track_correlation = 0.8;
 };
 
 /// Every front-end setting with its range, unit and doc (see setting_field.h).
@@ -87,6 +93,13 @@ struct FeatureMatch {
   cv::Point2f offset{0.f, 0.f};
 };
 
+/// A previous corner found in the current image by patch alignment (trackUnmatched()), without a
+/// current keypoint of its own.
+struct TrackedCorner {
+  int previous = -1;      ///< index into the previous frame's keypoints
+  cv::Point2f position;   ///< where its patch lies in the current image [px]
+};
+
 /// Half size of the patch that refineMatches() aligns (an 11 x 11 window).
 constexpr int kRefineHalfWindow = 5;
 
@@ -110,9 +123,9 @@ class FeatureFrontEnd {
   /// FAST corners (non-max suppressed), strongest first within each grid cell, at most
   /// max_features in all, none closer than kBriefHalfPatch + 1 to the border. `gray` is CV_8UC1.
   /// Throws std::invalid_argument for an empty or non-8-bit image.
-  /// When the corners at fast_threshold cannot fill max_features, cells with fewer corners than
-  /// their share (max_features / cells) are detected again at min_fast_threshold, so dim and
-  /// low-contrast regions still get corners.
+  /// When the corners at fast_threshold cannot fill max_features, or always when track_unmatched
+  /// is on, cells with fewer corners than their share (max_features / cells) are detected again at
+  /// min_fast_threshold, so dim and low-contrast regions still get corners.
   std::vector<cv::Point2f> detect(const cv::Mat& gray) const;
   /// detect() into `keypoints` (its capacity is reused).
   void detect(const cv::Mat& gray, std::vector<cv::Point2f>* keypoints) const;
@@ -158,6 +171,17 @@ class FeatureFrontEnd {
                      const FrameFeatures& previous, const FrameFeatures& current,
                      std::vector<FeatureMatch>* matches) const;
 
+  /// Tracking of the previous corners that no match holds (when settings().track_unmatched;
+  /// otherwise `tracks` is emptied). Each is predicted where the matches starting in its grid cell
+  /// moved (the median displacement; the 3 x 3 cells around it, or all matches, when its cell has
+  /// fewer than three), its patch aligned there as in refineMatches(), and kept when the aligned
+  /// patches correlate by at least min_track_correlation. This needs no corner in the current
+  /// image, so low-contrast corners that FAST finds in only one of the two frames still count.
+  /// Nothing is tracked with fewer than three matches. Images as in refineMatches().
+  void trackUnmatched(const cv::Mat& previous_gray, const cv::Mat& current_gray,
+                      const FrameFeatures& previous, const FrameFeatures& current,
+                      const std::vector<FeatureMatch>& matches, std::vector<TrackedCorner>* tracks) const;
+
   const FrontEndSettings& settings() const { return settings_; }
   void setSettings(const FrontEndSettings& settings) { settings_ = settings; }
 
@@ -187,6 +211,12 @@ class FeatureFrontEnd {
     std::vector<int> grid_start, grid_items, grid_cursor, grid_inside;
     std::vector<cv::Point2f> grid_points;
     std::vector<BriefDescriptor> grid_descriptors;
+    // Tracking: matched flag per previous keypoint, the matches' displacements sorted by the cell
+    // of their previous keypoint (cell starts), the median displacement per cell, median scratch.
+    std::vector<uint8_t> matched;
+    std::vector<int> track_cell_start, track_cell_cursor;
+    std::vector<cv::Point2f> track_moves, cell_moves;
+    std::vector<float> median_scratch;
   };
 
   FrontEndSettings settings_;

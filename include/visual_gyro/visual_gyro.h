@@ -49,6 +49,9 @@ struct FrameResult {
   /// (no prior, or matching = global), "global_fallback" (guided found too few matches, or its
   /// matches gave no valid estimate); "" when not matched (first frame, rejected image).
   std::string matching;
+  /// Of the pairs below, how many are tracked corners (FrontEndSettings::track_unmatched); they
+  /// come after the descriptor matches.
+  int tracked = 0;
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
@@ -157,6 +160,7 @@ class VisualGyro {
   std::vector<Eigen::Vector3d> bearings_;
   MatchPrediction prediction_;
   std::vector<FeatureMatch> matches_;
+  std::vector<TrackedCorner> tracks_;  ///< unmatched previous corners found by tracking
 };
 
 }  // namespace visual_gyro

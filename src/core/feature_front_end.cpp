@@ -213,9 +213,9 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
       intField<S>("max_hamming", &S::max_hamming, 0, 256, "bits", "largest Hamming distance of a match"),
       boolField<S>("cross_check", &S::cross_check, "keep only mutual best matches"),
       intField<S>("min_fast_threshold", &S::min_fast_threshold, 1, 254, "grey levels",
-                  "adaptive detection: when the corners at `fast_threshold` cannot fill `max_features`, every "
-                  "grid cell short of its share is detected again at this threshold (at or above "
-                  "`fast_threshold`: off)"),
+                  "adaptive detection: when the corners at `fast_threshold` cannot fill `max_features` (or always, "
+                  "with `track_unmatched`), every grid cell short of its share is detected again at this "
+                  "threshold (at or above `fast_threshold`: off)"),
       enumField<S, MatchingMode>("matching", &S::matching,
                                  {{"guided", MatchingMode::kGuided}, {"global", MatchingMode::kGlobal}},
                                  "`guided`: search each corner's match only near where the rotation prior puts it (global when "
@@ -230,6 +230,12 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
       boolField<S>("subpixel_refinement", &S::subpixel_refinement,
                    "sub-pixel match positions: the previous corner's 11 x 11 patch aligned with the current image "
                    "by Lucas-Kanade (translation); off: integer FAST positions"),
+      boolField<S>("track_unmatched", &S::track_unmatched,
+                   "track the previous corners no descriptor match holds by patch alignment where their cell's "
+                   "matches moved"),
+      doubleField<S>("min_track_correlation", &S::min_track_correlation, -1.0, 1.0, "",
+                     "a tracked corner's previous and current 11 x 11 patches must correlate (zero-mean "
+                     "normalised) at least this much"),
   };
   return fields;
 }
@@ -310,13 +316,15 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
 
   // Adaptive threshold: when the strong corners cannot fill the budget, each cell short of its
   // share is detected again at the floor threshold, as ORB-SLAM does, so dim or low-contrast
-  // regions still contribute corners while textured ones keep only their strong corners. (When
-  // they can, the budget is filled with strong corners and a second FAST pass would only swap some
-  // of them for weak ones, at the cost of a low-threshold pass over every sparse cell.) FAST's
-  // score is the largest threshold at which a pixel is still a corner, so the corners that passed
-  // the first threshold are found again (and ranked first).
+  // regions still contribute corners while textured ones keep only their strong corners. When
+  // they can, only tracking makes that second pass worth its cost: a weak corner that matching
+  // needs FAST to find again in the next frame rarely matches (it would only take the place of a
+  // strong one), while tracking needs no second detection, and corners spread over weak regions
+  // are what separates rotation from translation near structure. FAST's score is the largest
+  // threshold at which a pixel is still a corner, so the corners that passed the first threshold
+  // are found again (and ranked first).
   if (settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0 &&
-      w.candidates.size() < budget) {
+      (w.candidates.size() < budget || settings_.track_unmatched)) {
     // FAST needs 3 pixels around a candidate: the cell is widened by that much, then only corners
     // inside the cell itself are kept.
     constexpr int kFastRadius = 3;
@@ -648,6 +656,151 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
     // Previous keypoint p sits at the rounded template centre plus its own fraction.
     m.offset = cv::Point2f(static_cast<float>(qx + dx + (p.x - px) - q.x),
                            static_cast<float>(qy + dy + (p.y - py) - q.y));
+  }
+}
+
+
+namespace {
+
+/// Median of values[0..count) (the upper one of an even count); reorders them.
+float medianOf(float* values, size_t count) {
+  std::nth_element(values, values + count / 2, values + count);
+  return values[count / 2];
+}
+
+/// Zero-mean normalised cross-correlation of the (2h + 1)^2 patch of `previous` centred on the
+/// pixel (px, py) with the patch of `current` centred on (x, y), sampled bilinearly; -1 when
+/// either patch is flat.
+double patchCorrelation(const cv::Mat& previous, int px, int py, const cv::Mat& current, double x, double y,
+                        int h) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const double fx = x - x0, fy = y - y0;
+  const double w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+  for (int v = -h; v <= h; ++v) {
+    const uint8_t* a = previous.ptr<uint8_t>(py + v) + px;
+    const uint8_t* b0 = current.ptr<uint8_t>(y0 + v) + x0;
+    const uint8_t* b1 = current.ptr<uint8_t>(y0 + v + 1) + x0;
+    for (int u = -h; u <= h; ++u) {
+      const double va = a[u];
+      const double vb = w00 * b0[u] + w01 * b0[u + 1] + w10 * b1[u] + w11 * b1[u + 1];
+      sa += va;
+      sb += vb;
+      saa += va * va;
+      sbb += vb * vb;
+      sab += va * vb;
+    }
+  }
+  const double n = (2 * h + 1) * (2 * h + 1);
+  const double var_a = saa - sa * sa / n, var_b = sbb - sb * sb / n;
+  if (!(var_a > 0.0) || !(var_b > 0.0)) return -1.0;
+  return (sab - sa * sb / n) / std::sqrt(var_a * var_b);
+}
+
+}  // namespace
+
+void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat& current_gray,
+                                     const FrameFeatures& previous, const FrameFeatures& current,
+                                     const std::vector<FeatureMatch>& matches,
+                                     std::vector<TrackedCorner>* tracks) const {
+  checkSettings(settings_);
+  checkFeatures(previous, current, "trackUnmatched");
+  tracks->clear();
+  constexpr size_t kMinMoves = 3;  // fewer matches say nothing about how a region moved
+  if (!settings_.track_unmatched || matches.size() < kMinMoves) return;
+  checkImage(previous_gray, "trackUnmatched");
+  checkImage(current_gray, "trackUnmatched");
+  if (previous_gray.size() != current_gray.size()) {
+    throw std::invalid_argument("FeatureFrontEnd::trackUnmatched: the images differ in size");
+  }
+  Workspace& w = work_;
+  const int width = current_gray.cols, height = current_gray.rows;
+  const int cols = settings_.grid_cols, rows = settings_.grid_rows, cells = cols * rows;
+  const auto cellOf = [&](const cv::Point2f& p) {
+    const int cx = std::clamp(static_cast<int>(p.x * cols / width), 0, cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y * rows / height), 0, rows - 1);
+    return cy * cols + cx;
+  };
+  // The matches' displacements, grouped by the cell of their previous corner.
+  const size_t n_previous = previous.keypoints.size();
+  w.matched.assign(n_previous, 0);
+  w.track_cell_start.assign(cells + 1, 0);
+  for (const FeatureMatch& m : matches) {
+    w.matched[m.previous] = 1;
+    ++w.track_cell_start[cellOf(previous.keypoints[m.previous]) + 1];
+  }
+  for (int c = 0; c < cells; ++c) w.track_cell_start[c + 1] += w.track_cell_start[c];
+  w.track_cell_cursor.assign(w.track_cell_start.begin(), w.track_cell_start.end() - 1);
+  w.track_moves.resize(matches.size());
+  for (const FeatureMatch& m : matches) {
+    const cv::Point2f p = previous.keypoints[m.previous];
+    w.track_moves[w.track_cell_cursor[cellOf(p)]++] = current.keypoints[m.current] + m.offset - p;
+  }
+  // Median displacement per cell: its own matches, else those of the 3 x 3 cells around it, else
+  // all of them (a median per axis: robust to the wrong matches among them).
+  const auto medianMove = [&](int c0x, int c1x, int c0y, int c1y) -> std::pair<bool, cv::Point2f> {
+    w.median_scratch.clear();
+    for (int cy = std::max(0, c0y); cy <= std::min(rows - 1, c1y); ++cy) {
+      for (int cx = std::max(0, c0x); cx <= std::min(cols - 1, c1x); ++cx) {
+        const int c = cy * cols + cx;
+        for (int k = w.track_cell_start[c]; k < w.track_cell_start[c + 1]; ++k) w.median_scratch.push_back(w.track_moves[k].x);
+      }
+    }
+    const size_t count = w.median_scratch.size();
+    if (count < kMinMoves) return {false, {}};
+    const float mx = medianOf(w.median_scratch.data(), count);
+    w.median_scratch.clear();
+    for (int cy = std::max(0, c0y); cy <= std::min(rows - 1, c1y); ++cy) {
+      for (int cx = std::max(0, c0x); cx <= std::min(cols - 1, c1x); ++cx) {
+        const int c = cy * cols + cx;
+        for (int k = w.track_cell_start[c]; k < w.track_cell_start[c + 1]; ++k) w.median_scratch.push_back(w.track_moves[k].y);
+      }
+    }
+    return {true, cv::Point2f(mx, medianOf(w.median_scratch.data(), count))};
+  };
+  const cv::Point2f global_move = medianMove(0, cols - 1, 0, rows - 1).second;
+  w.cell_moves.resize(cells);
+  for (int cy = 0; cy < rows; ++cy) {
+    for (int cx = 0; cx < cols; ++cx) {
+      auto own = medianMove(cx, cx, cy, cy);
+      if (!own.first) own = medianMove(cx - 1, cx + 1, cy - 1, cy + 1);
+      w.cell_moves[cy * cols + cx] = own.first ? own.second : global_move;
+    }
+  }
+
+  using patch_alignment::kMaxShift;
+  using patch_alignment::kStride;
+  constexpr int h = kRefineHalfWindow;
+  constexpr int kIterations = 10;
+  constexpr double kConverged = 0.01;  // px, as in refineMatches
+  const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
+  const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
+  patch_alignment::PatchTemplate patch;
+  for (size_t i = 0; i < n_previous; ++i) {
+    if (w.matched[i]) continue;
+    const cv::Point2f p = previous.keypoints[i];
+    const cv::Point2f predicted = p + w.cell_moves[cellOf(p)];
+    const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
+    // The predicted centre, less the previous corner's own fraction (added back below).
+    const int qx = static_cast<int>(std::lround(predicted.x - (p.x - px)));
+    const int qy = static_cast<int>(std::lround(predicted.y - (p.y - py)));
+    if (px - h - 1 < 0 || py - h - 1 < 0 || px - h + kStride >= width || py + h + 1 >= height ||
+        qx - h - kMaxShift < 0 || qy - h - kMaxShift < 0 || qx - h + kMaxShift + 1 + kStride > width ||
+        qy + h + kMaxShift + 1 >= height) {
+      continue;
+    }
+    build_template(previous_gray.ptr<uint8_t>(py - h) + px - h, previous_gray.step[0], &patch);
+    double dx = 0.0, dy = 0.0;
+    if (!patch_alignment::alignPatch(patch, current_gray.ptr<uint8_t>(qy - h) + qx - h, current_gray.step[0],
+                                     correlate, kIterations, kConverged, &dx, &dy)) {
+      continue;
+    }
+    if (patchCorrelation(previous_gray, px, py, current_gray, qx + dx, qy + dy, h) <
+        settings_.min_track_correlation) {
+      continue;
+    }
+    tracks->push_back({static_cast<int>(i), cv::Point2f(static_cast<float>(qx + dx + (p.x - px)),
+                                                        static_cast<float>(qy + dy + (p.y - py)))});
   }
 }
 

@@ -219,6 +219,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     try {
       matchFrames(prior);
       front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
+      front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
     } catch (const std::exception& e) {
       // Before any state changed: the frame is rejected, the previous one stays.
       return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
@@ -236,6 +237,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         t0 = std::chrono::steady_clock::now();
         front_end_.match(previous_features_, features_, &matches_);
         front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
+        front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
         matching_ = "global_fallback";
         times.match += elapsedMs(t0);
         collectMatches(&result);
@@ -291,6 +293,13 @@ void VisualGyro::collectMatches(FrameResult* result) const {
       result->current_pixels.push_back(pixel);
       result->current_bearings.push_back(camera_.bearing(pixel.x, pixel.y));
     }
+  }
+  result->tracked = static_cast<int>(tracks_.size());
+  for (const TrackedCorner& t : tracks_) {
+    result->previous_pixels.push_back(previous_features_.keypoints[t.previous]);
+    result->previous_bearings.push_back(previous_keypoint_bearings_[t.previous]);
+    result->current_pixels.push_back(t.position);
+    result->current_bearings.push_back(camera_.bearing(t.position.x, t.position.y));
   }
 }
 

@@ -162,6 +162,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
     p.front_end = r.times;
     p.frozen = r.status == FrameStatus::kFrozenImage;
     p.matching = r.matching;
+    p.tracked = r.tracked;
     fillTruth(seq, &p);
     subsampleMatches(o.max_matches, o.seed, &p);
     injectOutliers(o.outliers, o.seed, angle_per_px, &p);

@@ -64,6 +64,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     s.vote_device += e.vote_device_ms;
     s.refine += e.refine_ms;
     s.matches_mean += row.matches;
+    s.tracked_mean += p.tracked;
     if (p.matching == "guided") ++s.guided_pairs;
     if (p.matching == "global_fallback") ++s.fallback_pairs;
     s.rows.push_back(row);
@@ -80,6 +81,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     s.refine /= n;
     s.total = s.detect + s.describe + s.match + s.estimate;
     s.matches_mean /= n;
+    s.tracked_mean /= n;
   }
   if (true_trans_n > 0) s.true_translation_mean = true_trans_sum / true_trans_n;
   return s;
@@ -116,6 +118,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
     if (s.matching == "guided")
       out << ": " << s.guided_pairs << " pairs guided, " << s.fallback_pairs << " fell back to global";
   }
+  if (s.tracked_mean > 0.0) out << "; " << fmt(s.tracked_mean, 1) << " of them tracked";
   out << ")\n";
   out << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
       << fmt(s.match) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
@@ -140,6 +143,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
   j.add("ms_per_frame", times)
       .add("backend", s.backend)
       .add("matches_mean", s.matches_mean)
+      .add("tracked_mean", s.tracked_mean)
       .add("front_end", s.front_end)
       .add("matching", s.matching)
       .add("guided_pairs", s.guided_pairs)

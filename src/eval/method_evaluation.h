@@ -41,6 +41,7 @@ struct MethodSummary {
   std::string first_error;
   std::string front_end;  ///< native, orb or klt
   std::string matching;   ///< native: the matching setting (guided, global); else ""
+  double tracked_mean = 0;  ///< native: tracked corners per pair (FrontEndSettings::track_unmatched)
   int guided_pairs = 0;   ///< native: pairs matched guided by the prior
   int fallback_pairs = 0;  ///< native: pairs where guided matching fell back to global
 };
