@@ -324,6 +324,12 @@ TEST(Tracking, OffOrWithoutMatchesTracksNothingAndBadInputThrows) {
   cv::cvtColor(image1, colour, cv::COLOR_GRAY2BGR);
   EXPECT_THROW(tracking.trackUnmatched(image0, colour, previous, current, matches, &tracks), std::invalid_argument);
   EXPECT_THROW(tracking.trackUnmatched(image0, cv::Mat(), previous, current, matches, &tracks), std::invalid_argument);
+  std::vector<vg::FeatureMatch> dangling = matches;
+  dangling[0].current = static_cast<int>(current.keypoints.size());
+  EXPECT_THROW(tracking.trackUnmatched(image0, image1, previous, current, dangling, &tracks), std::invalid_argument);
+  dangling[0] = matches[0];
+  dangling[1].previous = -1;
+  EXPECT_THROW(tracking.trackUnmatched(image0, image1, previous, current, dangling, &tracks), std::invalid_argument);
   vg::FrameFeatures misaligned = current;
   misaligned.descriptors.pop_back();
   EXPECT_THROW(tracking.trackUnmatched(image0, image1, previous, misaligned, matches, &tracks), std::invalid_argument);

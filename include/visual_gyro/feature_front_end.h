@@ -177,7 +177,8 @@ class FeatureFrontEnd {
   /// fewer than three), its patch aligned there as in refineMatches(), and kept when the aligned
   /// patches correlate by at least min_track_correlation. This needs no corner in the current
   /// image, so low-contrast corners that FAST finds in only one of the two frames still count.
-  /// Nothing is tracked with fewer than three matches. Images as in refineMatches().
+  /// Nothing is tracked with fewer than three matches. Images as in refineMatches(); a match whose
+  /// indices refer to no keypoint throws std::invalid_argument.
   void trackUnmatched(const cv::Mat& previous_gray, const cv::Mat& current_gray,
                       const FrameFeatures& previous, const FrameFeatures& current,
                       const std::vector<FeatureMatch>& matches, std::vector<TrackedCorner>* tracks) const;

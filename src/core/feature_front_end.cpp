@@ -726,6 +726,11 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
   w.matched.assign(n_previous, 0);
   w.track_cell_start.assign(cells + 1, 0);
   for (const FeatureMatch& m : matches) {
+    if (m.previous < 0 || static_cast<size_t>(m.previous) >= n_previous || m.current < 0 ||
+        static_cast<size_t>(m.current) >= current.keypoints.size()) {
+      throw std::invalid_argument("FeatureFrontEnd::trackUnmatched: a match refers to no keypoint (" +
+                                  std::to_string(m.previous) + " -> " + std::to_string(m.current) + ")");
+    }
     w.matched[m.previous] = 1;
     ++w.track_cell_start[cellOf(previous.keypoints[m.previous]) + 1];
   }

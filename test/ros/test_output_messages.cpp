@@ -26,6 +26,7 @@ FrameResult turnResult() {
   r.angular_velocity_covariance = Eigen::Matrix3d::Identity() * 1e-4;
   r.features = 700;
   r.rotation.matches_used = 400;
+  r.tracked = 150;
   return r;
 }
 
@@ -53,6 +54,7 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
   EXPECT_NEAR(msg->angular_velocity.y, 0.2, 1e-12);
   EXPECT_EQ(msg->method, "vote");
   EXPECT_EQ(msg->matches, 400u);
+  EXPECT_EQ(msg->tracked, 150u);
   const auto imu = om::imu(*msg, settings);
   ASSERT_TRUE(imu);
   EXPECT_NEAR(imu->angular_velocity.y, 0.2, 1e-12);
