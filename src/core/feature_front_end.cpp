@@ -612,6 +612,46 @@ void FeatureFrontEnd::matchGuided(const FrameFeatures& previous, const FrameFeat
                  w.col_best.data(), w.grid_items.data(), matches);
 }
 
+namespace {
+
+/// Aligns the (2 kRefineHalfWindow + 1)^2 patch of `previous_gray` around the previous corner `p`
+/// with `current_gray` around the whole pixel (qx, qy) (inverse-compositional Lucas-Kanade, at
+/// most kMaxShift px per axis; see refineMatches()). On success *position is where p's content
+/// lies in the current image. False when the patch or its search area leaves the image, the patch
+/// has no corner structure, or the alignment leaves the search box. `patch` is working space.
+bool alignCorner(const cv::Mat& previous_gray, const cv::Mat& current_gray, const cv::Point2f& p, int qx, int qy,
+                 patch_alignment::TemplateKernel build_template, patch_alignment::CorrelationKernel correlate,
+                 patch_alignment::PatchTemplate* patch, cv::Point2d* position) {
+  using patch_alignment::kMaxShift;
+  using patch_alignment::kStride;
+  constexpr int h = kRefineHalfWindow;
+  // A few more steps than inverse-compositional Lucas-Kanade usually needs: once the shift stays
+  // in one pixel cell a step costs no image access (alignPatch).
+  constexpr int kIterations = 10;
+  constexpr double kConverged = 0.01;  // px: an update this small ends the iterations
+  const int width = current_gray.cols, height = current_gray.rows;
+  const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
+  // The template and its central differences read one pixel around the patch and a row's
+  // padding to the right; the current patch moves by up to kMaxShift, plus one for the bilinear
+  // neighbour.
+  if (px - h - 1 < 0 || py - h - 1 < 0 || px - h + kStride >= width || py + h + 1 >= height ||
+      qx - h - kMaxShift < 0 || qy - h - kMaxShift < 0 || qx - h + kMaxShift + 1 + kStride > width ||
+      qy + h + kMaxShift + 1 >= height) {
+    return false;
+  }
+  build_template(previous_gray.ptr<uint8_t>(py - h) + px - h, previous_gray.step[0], patch);
+  double dx = 0.0, dy = 0.0;
+  if (!patch_alignment::alignPatch(*patch, current_gray.ptr<uint8_t>(qy - h) + qx - h, current_gray.step[0],
+                                   correlate, kIterations, kConverged, &dx, &dy)) {
+    return false;
+  }
+  // p sits at the rounded template centre plus its own fraction.
+  *position = cv::Point2d(qx + dx + (p.x - px), qy + dy + (p.y - py));
+  return true;
+}
+
+}  // namespace
+
 void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat& current_gray,
                                     const FrameFeatures& previous, const FrameFeatures& current,
                                     std::vector<FeatureMatch>* matches) const {
@@ -624,41 +664,18 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
   if (previous_gray.size() != current_gray.size()) {
     throw std::invalid_argument("FeatureFrontEnd::refineMatches: the images differ in size");
   }
-  const int width = current_gray.cols, height = current_gray.rows;
-  using patch_alignment::kMaxShift;
-  using patch_alignment::kStride;
-  constexpr int h = kRefineHalfWindow;
-  // A few more steps than inverse-compositional Lucas-Kanade usually needs: once the shift stays
-  // in one pixel cell a step costs no image access (alignPatch).
-  constexpr int kIterations = 10;
-  constexpr double kConverged = 0.01;  // px: an update this small ends the iterations
   const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
   const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
   patch_alignment::PatchTemplate patch;
   for (FeatureMatch& m : *matches) {
     const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
-    const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
-    const int qx = static_cast<int>(std::lround(q.x)), qy = static_cast<int>(std::lround(q.y));
-    // The template and its central differences read one pixel around the patch and a row's
-    // padding to the right; the current patch moves by up to kMaxShift, plus one for the bilinear
-    // neighbour.
-    if (px - h - 1 < 0 || py - h - 1 < 0 || px - h + kStride >= width || py + h + 1 >= height ||
-        qx - h - kMaxShift < 0 || qy - h - kMaxShift < 0 || qx - h + kMaxShift + 1 + kStride > width ||
-        qy + h + kMaxShift + 1 >= height) {
-      continue;
+    cv::Point2d aligned;
+    if (alignCorner(previous_gray, current_gray, p, static_cast<int>(std::lround(q.x)),
+                    static_cast<int>(std::lround(q.y)), build_template, correlate, &patch, &aligned)) {
+      m.offset = cv::Point2f(static_cast<float>(aligned.x - q.x), static_cast<float>(aligned.y - q.y));
     }
-    build_template(previous_gray.ptr<uint8_t>(py - h) + px - h, previous_gray.step[0], &patch);
-    double dx = 0.0, dy = 0.0;
-    if (!patch_alignment::alignPatch(patch, current_gray.ptr<uint8_t>(qy - h) + qx - h, current_gray.step[0],
-                                     correlate, kIterations, kConverged, &dx, &dy)) {
-      continue;
-    }
-    // Previous keypoint p sits at the rounded template centre plus its own fraction.
-    m.offset = cv::Point2f(static_cast<float>(qx + dx + (p.x - px) - q.x),
-                           static_cast<float>(qy + dy + (p.y - py) - q.y));
   }
 }
-
 
 namespace {
 
@@ -744,24 +761,20 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
   // Median displacement per cell: its own matches, else those of the 3 x 3 cells around it, else
   // all of them (a median per axis: robust to the wrong matches among them).
   const auto medianMove = [&](int c0x, int c1x, int c0y, int c1y) -> std::pair<bool, cv::Point2f> {
-    w.median_scratch.clear();
+    w.median_x.clear();
+    w.median_y.clear();
     for (int cy = std::max(0, c0y); cy <= std::min(rows - 1, c1y); ++cy) {
       for (int cx = std::max(0, c0x); cx <= std::min(cols - 1, c1x); ++cx) {
         const int c = cy * cols + cx;
-        for (int k = w.track_cell_start[c]; k < w.track_cell_start[c + 1]; ++k) w.median_scratch.push_back(w.track_moves[k].x);
+        for (int k = w.track_cell_start[c]; k < w.track_cell_start[c + 1]; ++k) {
+          w.median_x.push_back(w.track_moves[k].x);
+          w.median_y.push_back(w.track_moves[k].y);
+        }
       }
     }
-    const size_t count = w.median_scratch.size();
+    const size_t count = w.median_x.size();
     if (count < kMinMoves) return {false, {}};
-    const float mx = medianOf(w.median_scratch.data(), count);
-    w.median_scratch.clear();
-    for (int cy = std::max(0, c0y); cy <= std::min(rows - 1, c1y); ++cy) {
-      for (int cx = std::max(0, c0x); cx <= std::min(cols - 1, c1x); ++cx) {
-        const int c = cy * cols + cx;
-        for (int k = w.track_cell_start[c]; k < w.track_cell_start[c + 1]; ++k) w.median_scratch.push_back(w.track_moves[k].y);
-      }
-    }
-    return {true, cv::Point2f(mx, medianOf(w.median_scratch.data(), count))};
+    return {true, cv::Point2f(medianOf(w.median_x.data(), count), medianOf(w.median_y.data(), count))};
   };
   const cv::Point2f global_move = medianMove(0, cols - 1, 0, rows - 1).second;
   w.cell_moves.resize(cells);
@@ -773,11 +786,6 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
     }
   }
 
-  using patch_alignment::kMaxShift;
-  using patch_alignment::kStride;
-  constexpr int h = kRefineHalfWindow;
-  constexpr int kIterations = 10;
-  constexpr double kConverged = 0.01;  // px, as in refineMatches
   const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
   const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
   patch_alignment::PatchTemplate patch;
@@ -785,27 +793,18 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
     if (w.matched[i]) continue;
     const cv::Point2f p = previous.keypoints[i];
     const cv::Point2f predicted = p + w.cell_moves[cellOf(p)];
+    // The whole pixel the search starts from: the prediction less the corner's own fraction, which
+    // alignCorner adds back.
+    const int qx = static_cast<int>(std::lround(predicted.x - (p.x - std::lround(p.x))));
+    const int qy = static_cast<int>(std::lround(predicted.y - (p.y - std::lround(p.y))));
+    cv::Point2d aligned;
+    if (!alignCorner(previous_gray, current_gray, p, qx, qy, build_template, correlate, &patch, &aligned)) continue;
     const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
-    // The predicted centre, less the previous corner's own fraction (added back below).
-    const int qx = static_cast<int>(std::lround(predicted.x - (p.x - px)));
-    const int qy = static_cast<int>(std::lround(predicted.y - (p.y - py)));
-    if (px - h - 1 < 0 || py - h - 1 < 0 || px - h + kStride >= width || py + h + 1 >= height ||
-        qx - h - kMaxShift < 0 || qy - h - kMaxShift < 0 || qx - h + kMaxShift + 1 + kStride > width ||
-        qy + h + kMaxShift + 1 >= height) {
+    if (patchCorrelation(previous_gray, px, py, current_gray, aligned.x - (p.x - px), aligned.y - (p.y - py),
+                         kRefineHalfWindow) < settings_.min_track_correlation) {
       continue;
     }
-    build_template(previous_gray.ptr<uint8_t>(py - h) + px - h, previous_gray.step[0], &patch);
-    double dx = 0.0, dy = 0.0;
-    if (!patch_alignment::alignPatch(patch, current_gray.ptr<uint8_t>(qy - h) + qx - h, current_gray.step[0],
-                                     correlate, kIterations, kConverged, &dx, &dy)) {
-      continue;
-    }
-    if (patchCorrelation(previous_gray, px, py, current_gray, qx + dx, qy + dy, h) <
-        settings_.min_track_correlation) {
-      continue;
-    }
-    tracks->push_back({static_cast<int>(i), cv::Point2f(static_cast<float>(qx + dx + (p.x - px)),
-                                                        static_cast<float>(qy + dy + (p.y - py)))});
+    tracks->push_back({static_cast<int>(i), cv::Point2f(static_cast<float>(aligned.x), static_cast<float>(aligned.y))});
   }
 }
 
