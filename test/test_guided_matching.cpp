@@ -46,6 +46,20 @@ bool correct(const vg::CameraModel& camera, const Eigen::Matrix3d& truth, const 
   return std::hypot(predicted.x() - q.x, predicted.y() - q.y) <= 1.5;
 }
 
+/// Two images' features and their global matches.
+struct MatchedPair {
+  vg::FrameFeatures previous, current;
+  std::vector<vg::FeatureMatch> matches;
+};
+
+MatchedPair describeAndMatch(const vg::FeatureFrontEnd& front_end, const cv::Mat& image0, const cv::Mat& image1) {
+  MatchedPair pair;
+  pair.previous = front_end.describe(image0, front_end.detect(image0));
+  pair.current = front_end.describe(image1, front_end.detect(image1));
+  front_end.match(pair.previous, pair.current, &pair.matches);
+  return pair;
+}
+
 }  // namespace
 
 // Guided matching with the true rotation finds every correct match that global matching finds:
@@ -231,10 +245,9 @@ TEST(Tracking, FindsUnmatchedCornersWhereTheRotationPutsThem) {
   settings.subpixel_refinement = true;
   settings.track_unmatched = true;
   const vg::FeatureFrontEnd front_end(settings);
-  const vg::FrameFeatures previous = front_end.describe(image0, front_end.detect(image0));
-  const vg::FrameFeatures current = front_end.describe(image1, front_end.detect(image1));
-  std::vector<vg::FeatureMatch> matches;
-  front_end.match(previous, current, &matches);
+  MatchedPair pair = describeAndMatch(front_end, image0, image1);
+  const vg::FrameFeatures &previous = pair.previous, &current = pair.current;
+  std::vector<vg::FeatureMatch>& matches = pair.matches;
   front_end.refineMatches(image0, image1, previous, current, &matches);
   std::vector<vg::TrackedCorner> tracks;
   front_end.trackUnmatched(image0, image1, previous, current, matches, &tracks);
@@ -297,10 +310,9 @@ TEST(Tracking, OffOrWithoutMatchesTracksNothingAndBadInputThrows) {
   vg::FrontEndSettings settings;
   settings.track_unmatched = true;
   const vg::FeatureFrontEnd tracking(settings);
-  const vg::FrameFeatures previous = tracking.describe(image0, tracking.detect(image0));
-  const vg::FrameFeatures current = tracking.describe(image1, tracking.detect(image1));
-  std::vector<vg::FeatureMatch> matches;
-  tracking.match(previous, current, &matches);
+  const MatchedPair pair = describeAndMatch(tracking, image0, image1);
+  const vg::FrameFeatures &previous = pair.previous, &current = pair.current;
+  const std::vector<vg::FeatureMatch>& matches = pair.matches;
   ASSERT_GE(matches.size(), 10u);
   std::vector<vg::TrackedCorner> tracks(5);
   tracking.trackUnmatched(image0, image1, previous, current, matches, &tracks);
