@@ -217,7 +217,7 @@ class FeatureFrontEnd {
     std::vector<uint8_t> matched;
     std::vector<int> track_cell_start, track_cell_cursor;
     std::vector<cv::Point2f> track_moves, cell_moves;
-    std::vector<float> median_x, median_y;
+    std::vector<double> median_x, median_y;
   };
 
   FrontEndSettings settings_;

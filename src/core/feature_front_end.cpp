@@ -6,6 +6,7 @@
 #include "fast_detector.h"
 #include "fixed_point_gaussian.h"
 #include "hamming_kernels.h"
+#include "match_passes.h"
 #include "patch_alignment.h"
 
 #include <algorithm>
@@ -679,12 +680,6 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
 
 namespace {
 
-/// Median of values[0..count) (the upper one of an even count); reorders them.
-float medianOf(float* values, size_t count) {
-  std::nth_element(values, values + count / 2, values + count);
-  return values[count / 2];
-}
-
 /// Zero-mean normalised cross-correlation of the (2h + 1)^2 patch of `previous` centred on the
 /// pixel (px, py) with the patch of `current` centred on (x, y), sampled bilinearly; -1 when
 /// either patch is flat.
@@ -774,7 +769,9 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
     }
     const size_t count = w.median_x.size();
     if (count < kMinMoves) return {false, {}};
-    return {true, cv::Point2f(medianOf(w.median_x.data(), count), medianOf(w.median_y.data(), count))};
+    // The upper median of an even count.
+    return {true, cv::Point2f(static_cast<float>(passes::selectKth(w.median_x.data(), count, count / 2)),
+                              static_cast<float>(passes::selectKth(w.median_y.data(), count, count / 2)))};
   };
   const cv::Point2f global_move = medianMove(0, cols - 1, 0, rows - 1).second;
   w.cell_moves.resize(cells);
