@@ -490,11 +490,54 @@ TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
     Eigen::SelfAdjointEigenSolver<Matrix3d> eig(0.5 * (r.covariance + r.covariance.transpose()));
     EXPECT_GT(eig.eigenvalues().minCoeff(), 0.0);
     // What the matches say, without the constant floor for what they cannot show.
-    const double floor = 3.0 * vg::kRotationCovarianceFloor * vg::kRotationCovarianceFloor;
+    const double floor = 3.0 * std::pow(vg::rotationCovarianceFloor(est->refinedPositions()), 2);
     EXPECT_GE(r.covariance.trace(), floor);
     (noise < 1e-3 ? trace_low : trace_high) = r.covariance.trace() - floor;
   }
   EXPECT_GT(trace_high, 4.0 * trace_low);
+}
+
+// With refined positions the covariance counts as many independent matches as the spatial
+// jackknife of the inliers finds: independent noise leaves most of them, an error shared by each
+// quadrant of the image (a patch of texture or blur that shifts its matches alike) far fewer, and
+// the covariance then grows to cover the larger error. Integer positions count at most
+// kIntegerPositionsEffectiveMatches. Both refinement models: pure rotation and general motion.
+TEST(VoteMethod, EffectiveMatchesFollowHowTheErrorsAreShared) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, 0.5 * kDeg, 0.3 * kDeg);
+  for (const Vector3d& t : {Vector3d::Zero().eval(), Vector3d(0.3, 0.05, 1.0)}) {
+    Scene s = makeScene(R, t, 600, 0.3e-3, 0.0, 5, 50, 31);
+    auto est = vg::createRotationEstimator(cpuSettings("vote"));
+    est->setRefinedPositions(true);
+    const vg::RotationResult independent = est->estimate(s.previous, s.current);
+    ASSERT_TRUE(independent.valid()) << independent.reason;
+    // Each quadrant's previous bearings turned by its own 0.05 deg rotation.
+    std::mt19937 rng(7);
+    std::normal_distribution<double> shared(0.0, 0.05 * kDeg);
+    Matrix3d quadrant[4];
+    for (Matrix3d& q : quadrant) q = vg::so3Exp(Vector3d(shared(rng), shared(rng), shared(rng)));
+    for (size_t i = 0; i < s.previous.size(); ++i)
+      s.previous[i] = quadrant[(s.current[i].x() > 0) + 2 * (s.current[i].y() > 0)] * s.previous[i];
+    auto est_shared = vg::createRotationEstimator(cpuSettings("vote"));
+    est_shared->setRefinedPositions(true);
+    const vg::RotationResult correlated = est_shared->estimate(s.previous, s.current);
+    ASSERT_TRUE(correlated.valid()) << correlated.reason;
+    const double error = vg::rotationAngleBetween(correlated.rotation, R);
+    const double sigma_without_floor = std::sqrt(correlated.covariance.trace() - 3.0 * std::pow(vg::kRefinedPositionsCovarianceFloor, 2));
+    std::printf("t = (%.2f %.2f %.2f): effective matches %.0f of %d (independent noise), %.0f of %d (shared by "
+                "quadrants); error %.4f deg, sigma without the floor %.4f deg\n",
+                t.x(), t.y(), t.z(), independent.diagnostics.effective_matches, independent.inliers,
+                correlated.diagnostics.effective_matches, correlated.inliers, error / kDeg, sigma_without_floor / kDeg);
+    EXPECT_GT(independent.diagnostics.effective_matches, 0.3 * independent.inliers);
+    EXPECT_LE(independent.diagnostics.effective_matches, independent.inliers);
+    EXPECT_LT(correlated.diagnostics.effective_matches, 0.1 * correlated.inliers);
+    EXPECT_LT(error, 3.0 * sigma_without_floor) << "the covariance should cover the shared error";
+
+    auto integer = vg::createRotationEstimator(cpuSettings("vote"));
+    const vg::RotationResult capped = integer->estimate(s.previous, s.current);
+    ASSERT_TRUE(capped.valid()) << capped.reason;
+    EXPECT_DOUBLE_EQ(capped.diagnostics.effective_matches,
+                     std::min<double>(capped.inliers, vg::kIntegerPositionsEffectiveMatches));
+  }
 }
 
 TEST(VoteMethod, WrongPriorFallsBackToTheWideWindow) {

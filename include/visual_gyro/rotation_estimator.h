@@ -83,12 +83,22 @@ struct EstimatorSettings {
   double min_covariance_rad2 = 1e-8;  ///< floor of each rotation covariance diagonal entry
 };
 
-/// Standard deviation per axis [rad] added to every vote-method rotation covariance: the errors no
-/// residual shows (calibration, time stamps, the ground truth it was calibrated against), 0.035 deg.
-/// On KITTI it is mostly the truth's own error: integer, sub-pixel and KLT matches give the same
-/// per-frame error there, 0.02-0.04 deg per axis. It is larger than the whole error of sub-pixel
-/// matches on EuRoC, which is why sub-pixel positions are not the default (README, "Covariance model").
-constexpr double kRotationCovarianceFloor = 0.035 * kDegToRad;
+/// Standard deviation per axis [rad] added to every vote-method rotation covariance from refined
+/// (sub-pixel) positions, 0.015 deg: the errors no residual shows (calibration, time stamps).
+/// Calibrated once on kitti_turn, kitti_straight and euroc_mh01_shake together, with each truth's
+/// own error in the evaluation (README, "Covariance model").
+constexpr double kRefinedPositionsCovarianceFloor = 0.015 * kDegToRad;
+/// The same for integer positions, 0.035 deg. FAST's integer corners shift alike under motion blur,
+/// an error shared by every match that neither the residuals nor their spread show; this model
+/// (with kIntegerPositionsEffectiveMatches) is conservative where there is no blur.
+constexpr double kIntegerPositionsCovarianceFloor = 0.035 * kDegToRad;
+/// Independent matches the covariance counts at most with integer positions (with refined
+/// positions, the spatial jackknife measures them per frame).
+constexpr double kIntegerPositionsEffectiveMatches = 40.0;
+/// The floor for positions refined (true) or integer (false).
+inline double rotationCovarianceFloor(bool refined_positions) {
+  return refined_positions ? kRefinedPositionsCovarianceFloor : kIntegerPositionsCovarianceFloor;
+}
 
 /// Every estimator setting with its range, unit and doc (see setting_field.h).
 const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields();
@@ -141,6 +151,10 @@ struct VoteDiagnostics {
   double prior_offset = std::numeric_limits<double>::quiet_NaN();
   /// Robust scale of the refined inliers' residuals [rad] (the sigma of the covariance).
   double residual_sigma = 0.0;
+  /// Inliers the covariance counts as independent: the inliers over the factor by which the
+  /// spread of the rotation over spatial groups of them exceeds sigma^2 (J^T W J)^-1 (at most the
+  /// inliers; see the covariance model in the README).
+  double effective_matches = 0.0;
 };
 
 /// Result of one rotation estimate.
@@ -208,6 +222,13 @@ class RotationEstimator {
 
   /// Changes settings (e.g. from dynamic_reconfigure); the backend stays.
   void setSettings(const EstimatorSettings& settings);
+  /// Whether the matches' image positions are refined to sub-pixel precision (false: integer
+  /// pixels, the default). It chooses the vote method's covariance model: refined positions count
+  /// as many independent matches as a spatial jackknife of the inliers measures, integer ones at
+  /// most kIntegerPositionsEffectiveMatches (rotationCovarianceFloor). Set by whoever runs the
+  /// front end (VisualGyro from FrontEndSettings::subpixel_refinement), not a user setting.
+  void setRefinedPositions(bool refined) { refined_positions_ = refined; }
+  bool refinedPositions() const { return refined_positions_; }
   const EstimatorSettings& settings() const { return settings_; }
   /// "cpu" or "cuda".
   std::string backendName() const;
@@ -224,6 +245,7 @@ class RotationEstimator {
   void castVotes(const VoteRequest& request, VoteResult* votes);
 
   EstimatorSettings settings_;
+  bool refined_positions_ = false;
   std::unique_ptr<HypothesisVoter> voter_;
   double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
   double vote_device_ms_ = 0.0;  // this frame's kernel time so far

@@ -35,13 +35,6 @@ constexpr double kMinValleyLateral = 0.3;
 // whose translation says nothing of the true valley) also searches the two axes across the view.
 constexpr double kValleyInlierRatio = 0.85;
 
-// Covariance model (see honestCovariance); calibrated once on the three real sequences with
-// ground truth (KITTI turn and straight, EuRoC MH_01 shaken), not per sequence.
-// Matches beyond this many do not shrink the covariance further: their errors are not
-// independent (calibration, shared image regions, residual distortion), so the statistical
-// 1/N of (J^T W J)^-1 overstates the information of a large match set.
-constexpr double kEffectiveMatches = 40.0;
-
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -407,12 +400,28 @@ std::vector<Candidate> topCandidates(const VoteResult& votes, const hyp::VoteGri
 }
 
 // The covariance a fusion filter can weight by: the refinement's sigma^2 (J^T W J)^-1 scaled up
-// to kEffectiveMatches independent matches, plus the spread of the competing refined candidates
-// that explain the matches about as well as the winner (a close scene's rotation/translation
-// valley: two rotations a degree apart, each with its translation, that differ by fewer inliers
-// than the count's own noise), plus a floor for the unmodelled errors.
-Eigen::Matrix3d honestCovariance(const RefinedRotation& winner, const std::vector<RefinedRotation>& contenders) {
-  Eigen::Matrix3d covariance = winner.covariance * std::max(1.0, winner.inliers / kEffectiveMatches);
+// by how far the matches' errors are from independent, plus the spread of the competing refined
+// candidates that explain the matches about as well as the winner (a close scene's
+// rotation/translation valley: two rotations a degree apart, each with its translation, that
+// differ by fewer inliers than the count's own noise), plus a floor for the unmodelled errors.
+// The scale: with refined positions, the mean ratio (in the metric of the statistical covariance)
+// of the spatial jackknife's covariance to the statistical one, at least 1, since matches that
+// share an error (a patch of texture, blur) leave a jackknife group together; with integer
+// positions, inliers / kIntegerPositionsEffectiveMatches (their shared errors are global: no
+// group shows them). `effective_matches` is the inliers over that scale.
+Eigen::Matrix3d honestCovariance(FrameMatches& matches, const RefinedRotation& winner,
+                                 const std::vector<RefinedRotation>& contenders, double threshold,
+                                 bool refined_positions, double* effective_matches) {
+  double inflation = std::max(1.0, winner.inliers / kIntegerPositionsEffectiveMatches);
+  if (refined_positions) {
+    inflation = 1.0;
+    const JackknifeSpread jack = jackknifeSpread(matches, winner, threshold);
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(winner.covariance);
+    if (jack.groups > 0 && lu.isInvertible())
+      inflation = std::max(1.0, (lu.inverse() * jack.covariance).trace() / 3.0);
+  }
+  *effective_matches = winner.inliers / inflation;
+  Eigen::Matrix3d covariance = winner.covariance * inflation;
   // Each contender is weighted by how indistinguishable its inlier count is from the winner's: the
   // count's standard deviation is about sqrt(count) (binomial, most matches inliers), so a
   // contender z such deviations behind weighs exp(-z^2 / 2). The weighted second moment about the
@@ -428,7 +437,8 @@ Eigen::Matrix3d honestCovariance(const RefinedRotation& winner, const std::vecto
     weights += w;
   }
   covariance += spread / weights;
-  covariance.diagonal().array() += kRotationCovarianceFloor * kRotationCovarianceFloor;
+  const double floor = rotationCovarianceFloor(refined_positions);
+  covariance.diagonal().array() += floor * floor;
   return covariance;
 }
 
@@ -538,7 +548,11 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   std::vector<RefinedRotation> contenders;  // every refined candidate, the winner included
   for (const Verified& v : verified) {
     if (refined_count == kMaxRefinedCandidates) break;
-    if (v.rotation.inliers < kRefineFraction * best_verified) break;
+    // The prior and the identity are refined whatever their verified count: they are candidates
+    // because under strong translation the voted rotations are all biased alike, and then their
+    // own verification (a translation sampled from a start far off) undercounts them too.
+    const bool structural = v.source == std::string("prior") || v.source == std::string("identity");
+    if (v.rotation.inliers < kRefineFraction * best_verified && !structural) continue;
     const RefinedRotation r = refineRotation(matches, v.rotation, threshold, settings_.refine_iterations);
     ++refined_count;
     contenders.push_back(r);
@@ -616,8 +630,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     refined = next;
   }
   fillAngles(refined.rotation, &result);
-  result.covariance = refined.covariance;
-  result.covariance = honestCovariance(refined, contenders);
+  result.covariance = honestCovariance(matches, refined, contenders, threshold, refined_positions_,
+                                       &diagnostics.effective_matches);
   for (int k = 0; k < 3; ++k)
     result.covariance(k, k) = std::max(result.covariance(k, k), settings_.min_covariance_rad2);
   result.inliers = refined.inliers;

@@ -568,4 +568,95 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
   return refineGeneral(matches, start.rotation, start.translation, threshold, iterations, warm);
 }
 
+JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {
+  JackknifeSpread out;
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  const Eigen::Matrix3d& R = refined.rotation;
+  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  rotateAll(m, R);
+  s.residuals.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
+  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  std::vector<uint32_t>& order = s.order;
+  order.resize(n);
+  size_t count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    order[count] = static_cast<uint32_t>(i);
+    count += usable(s, i) & (s.residuals[i] < gate * gate);
+  }
+  order.resize(count);
+  const int k = std::min(4, static_cast<int>(std::sqrt(static_cast<double>(count) / kMinJackknifeGroupSize)));
+  if (k < 2) return out;
+  // k strips of equal count across x, each cut into k groups of equal count along y.
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b]; });
+  s.group.assign(n, -1);
+  for (int strip = 0; strip < k; ++strip) {
+    const auto begin = order.begin() + count * strip / k, end = order.begin() + count * (strip + 1) / k;
+    std::sort(begin, end, [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b]; });
+    const size_t length = end - begin;
+    for (size_t j = 0; j < length; ++j) s.group[begin[j]] = strip * k + static_cast<int>(j * k / length);
+  }
+  const int groups = k * k;
+  constexpr int kMaxGroups = 16;
+  const int dim = pure ? 3 : 5;
+  Eigen::Matrix<double, 5, 5> A_group[kMaxGroups];
+  Eigen::Matrix<double, 5, 1> g_group[kMaxGroups];
+  for (int g = 0; g < groups; ++g) {
+    A_group[g].setZero();
+    g_group[g].setZero();
+  }
+  if (pure) {
+    // Residual n = b_prev x R b_cur, J = -[p]x [Rc]x R: J^T J as in refinePureRotation's covariance,
+    // and J^T n = R^T (p . Rc) n; summed with R^T left out, applied once per group.
+    for (uint32_t i : order) {
+      const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]), normal(s.nx[i], s.ny[i], s.nz[i]);
+      const double d = p.dot(rc);
+      Eigen::Matrix3d KtK = rc.squaredNorm() * p * p.transpose() - d * (p * rc.transpose() + rc * p.transpose());
+      KtK.diagonal().array() += d * d;
+      A_group[s.group[i]].topLeftCorner<3, 3>() += KtK;
+      g_group[s.group[i]].head<3>() += d * normal;
+    }
+    for (int g = 0; g < groups; ++g) {
+      A_group[g].topLeftCorner<3, 3>() = R.transpose() * A_group[g].topLeftCorner<3, 3>() * R;
+      g_group[g].head<3>() = R.transpose() * g_group[g].head<3>();
+    }
+  } else {
+    // Each group's normal equations from the covariance's own summing pass, on the group alone.
+    s.weights.resize(n);
+    std::vector<double>* const to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
+    for (int g = 0; g < groups; ++g) {
+      for (size_t i = 0; i < n; ++i) s.weights[i] = s.group[i] == g ? 1.0 : 0.0;
+      s.gathered = gatherMatches(m, s.weights.data(), 1, to);
+      NormalEquations ne;
+      accumulateEpipolar(gatheredInScratch(m), R, refined.translation, threshold, Weighting::kInliers, &ne);
+      A_group[g] = ne.A;
+      g_group[g] = ne.g;
+    }
+  }
+  Eigen::Matrix<double, 5, 5> A = Eigen::Matrix<double, 5, 5>::Zero();
+  Eigen::Matrix<double, 5, 1> b = Eigen::Matrix<double, 5, 1>::Zero();
+  for (int g = 0; g < groups; ++g) {
+    A += A_group[g];
+    b += g_group[g];
+  }
+  // Each leave-one-out solution is one Gauss-Newton step on the rest from the full solution; the
+  // full solution's own step (about zero at convergence) cancels in the spread about the mean.
+  Eigen::Matrix<double, 3, kMaxGroups> steps;
+  for (int g = 0; g < groups; ++g) {
+    Eigen::Matrix<double, 5, 5> rest = A - A_group[g];
+    if (pure) rest.bottomRightCorner<2, 2>().setIdentity();
+    rest.diagonal().array() += 1e-12 * (rest.diagonal().array().abs() + 1e-12);
+    const Eigen::Matrix<double, 5, 1> step = rest.ldlt().solve(-(b - g_group[g]));
+    if (!step.allFinite()) return out;
+    steps.col(g) = step.head<3>();
+  }
+  const Eigen::Vector3d mean = steps.leftCols(groups).rowwise().mean();
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  for (int g = 0; g < groups; ++g) spread.noalias() += (steps.col(g) - mean) * (steps.col(g) - mean).transpose();
+  out.covariance = spread * (static_cast<double>(groups - 1) / groups);
+  out.groups = groups;
+  return out;
+}
+
 }  // namespace visual_gyro

@@ -56,6 +56,9 @@ class FrameMatches {
     bool counting = false;
     const double* counted[9] = {};  ///< p x, y, z, then R b_cur, then n
     std::vector<uint32_t> moving;  ///< matches a pure rotation does not explain (verification)
+    /// The jackknife's inliers, ordered into spatial groups, and each match's group (-1: none).
+    std::vector<uint32_t> order;
+    std::vector<int> group;
   };
   Scratch scratch;
 };
@@ -105,5 +108,25 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 /// `warm`: the start is already a refined rotation, so the wide first gates are skipped.
 RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& start, double threshold,
                                int iterations, bool warm = false);
+
+/// Fewest inliers a jackknife group holds (the groups per axis shrink until each has this many).
+constexpr int kMinJackknifeGroupSize = 10;
+
+/// Delete-a-group jackknife of a refined rotation.
+struct JackknifeSpread {
+  /// Covariance [rad^2] of the rotation vector (right perturbation, as RefinedRotation::covariance)
+  /// from how far the rotation moves when each group is left out; zero when `groups` is 0.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  int groups = 0;  ///< groups of inliers used; 0 when the inliers are too few to form four
+};
+
+/// The spread of `refined` over spatial groups of its inliers. The inliers (under the residual and
+/// gate of refineRotation's covariance) are split into k x k groups of equal count by the previous
+/// bearing: k strips across x, each cut into k along y, with k = 4 at most and at least
+/// kMinJackknifeGroupSize inliers a group. Each group is left out in turn, one Gauss-Newton step
+/// from the solution, and the spread of those steps estimates the rotation's covariance. Unlike
+/// sigma^2 (J^T W J)^-1 it sees errors that neighbouring matches share (the same texture, blur or
+/// rounding), since a group's matches leave together.
+JackknifeSpread jackknifeSpread(FrameMatches& matches, const RefinedRotation& refined, double threshold);
 
 }  // namespace visual_gyro

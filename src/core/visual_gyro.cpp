@@ -121,6 +121,7 @@ VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& sett
   checkCamera(camera);
   checkSettings(settings);
   estimator_ = createRotationEstimator(settings.estimator, warn);
+  estimator_->setRefinedPositions(settings.front_end.subpixel_refinement);
 }
 
 void VisualGyro::reset() {
@@ -143,6 +144,7 @@ void VisualGyro::setSettings(const VisualGyroSettings& settings) {
   settings_ = settings;
   front_end_.setSettings(settings.front_end);
   estimator_->setSettings(settings.estimator);
+  estimator_->setRefinedPositions(settings.front_end.subpixel_refinement);
 }
 
 FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {

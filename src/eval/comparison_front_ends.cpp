@@ -107,6 +107,11 @@ class KltFrontEnd : public ComparisonFrontEnd {
 
 }  // namespace
 
+bool refinesPositions(const std::string& front_end, const VisualGyroSettings& settings) {
+  if (front_end == "native") return settings.front_end.subpixel_refinement;
+  return front_end == "klt";
+}
+
 const std::vector<std::string>& comparisonFrontEndNames() {
   static const std::vector<std::string> names{"orb", "klt"};
   return names;

@@ -27,6 +27,12 @@ class ComparisonFrontEnd {
                        std::vector<cv::Point2f>* current, FrameTimes* times) = 0;
 };
 
+/// Whether `front_end` ("native", or a name makeComparisonFrontEnd accepts) gives sub-pixel match
+/// positions, which chooses the estimator's covariance model (RotationEstimator::setRefinedPositions):
+/// native when `settings` refine them, KLT (Lucas-Kanade tracks are sub-pixel), not ORB (keypoints
+/// on the pixel grids of its pyramid levels).
+bool refinesPositions(const std::string& front_end, const VisualGyroSettings& settings);
+
 /// Names accepted by makeComparisonFrontEnd: "orb", "klt".
 const std::vector<std::string>& comparisonFrontEndNames();
 

@@ -17,10 +17,12 @@ double elapsedMs(std::chrono::steady_clock::time_point start) {
 /// valid rotation vector, rescaled to this interval; none after an invalid estimate).
 class OwnEstimatorRunner : public MethodRunner {
  public:
-  explicit OwnEstimatorRunner(const EstimatorSettings& settings)
+  OwnEstimatorRunner(const EstimatorSettings& settings, bool refined_positions)
       : estimator_(createRotationEstimator(settings, [](const std::string& w) {
           std::cerr << "warning: " << w << "\n";
-        })) {}
+        })) {
+    estimator_->setRefinedPositions(refined_positions);
+  }
 
   MethodEstimate run(const FramePair& pair) override {
     const RotationPrior prior = prior_.priorFor(pair.dt);
@@ -141,11 +143,11 @@ std::string methodProblem(const std::string& method) {
 }
 
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
-                                         const BaselineSettings& baseline) {
+                                         const BaselineSettings& baseline, bool refined_positions) {
   std::unique_ptr<MethodRunner> runner;
   EstimatorSettings estimator = settings.estimator;
   if (parseMethod(method, &estimator.method)) {
-    runner = std::make_unique<OwnEstimatorRunner>(estimator);
+    runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions);
   } else {
     runner = std::make_unique<BaselineRunner>(method, baseline);
   }

@@ -22,6 +22,9 @@ struct TimingSweepOptions {
   int at_hypotheses = 10000;  ///< hypotheses of the matches series
   int repeats = 3;            ///< runs per pair; the fastest counts
   uint64_t seed = 1;          ///< seed of the resampling
+  /// The pairs' positions are sub-pixel (refinesPositions of their front end): the estimators'
+  /// covariance model, and so their time, depends on it.
+  bool refined_positions = false;
 };
 
 /// Two series: over hypotheses at a fixed number of matches (methods without a hypothesis count,

@@ -219,13 +219,15 @@ int run(int argc, char** argv) {
   if (!o.sweep.csv_path.empty()) {
     o.sweep.methods = o.methods;
     o.sweep.seed = o.pairs.seed;
+    o.sweep.refined_positions = eval::refinesPositions(o.pairs.front_end, settings);
     eval::timingSweep(seq.name, 1.0 / seq.camera.fx(), o.sweep, settings, base, pairs);
     return 0;
   }
 
   std::vector<eval::MethodSummary> summaries;
   for (const std::string& method : o.methods) {
-    const std::unique_ptr<eval::MethodRunner> runner = eval::makeRunner(method, settings, base);
+    const std::unique_ptr<eval::MethodRunner> runner =
+        eval::makeRunner(method, settings, base, eval::refinesPositions(o.pairs.front_end, settings));
     summaries.push_back(eval::evaluateMethod(method, runner.get(), pairs));
     summaries.back().front_end = o.pairs.front_end;
     if (o.pairs.front_end == "native") summaries.back().matching = findSetting("matching")->text(settings);
