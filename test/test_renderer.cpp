@@ -113,6 +113,7 @@ TEST(Renderer, KittiLayoutLoadsBack) {
   EXPECT_DOUBLE_EQ(seq.camera.cx(), 159.5);
   EXPECT_DOUBLE_EQ(seq.camera.cy(), 119.5);
   ASSERT_TRUE(seq.hasPoses());
+  EXPECT_TRUE(seq.truth_sigma_deg.isZero());  // rendered from these poses: exact
   ASSERT_EQ(seq.stamps.size(), 6u);
   for (size_t k = 0; k < 6; ++k) {
     EXPECT_NEAR(seq.stamps[k], rendered.stamps[k], 1e-9);

@@ -277,6 +277,7 @@ TEST(Sequence, EurocGroundTruthPoses) {
 
   const Sequence seq = loadSequence(root.string());
   EXPECT_EQ(seq.truth, "poses");
+  EXPECT_EQ(seq.truth_sigma_deg, Eigen::Vector3d::Constant(kEurocPosesSigmaDeg));
   ASSERT_TRUE(seq.hasPoses());
   ASSERT_EQ(seq.orientations.size(), 4u);
   EXPECT_LT((seq.orientations[0] - Eigen::Matrix3d::Identity()).norm(), 1e-12) << "relative to the first image";
@@ -365,6 +366,13 @@ TEST(Sequence, KittiLayoutDetails) {
   ASSERT_TRUE(seq.trueAngularVelocity(2, &w));
   EXPECT_LT((w - Eigen::Vector3d(0, 0.02 / 0.075, 0)).norm(), 1e-8);
   EXPECT_LT((seq.positions[2] - Eigen::Vector3d(2, 0, 4)).norm(), 1e-12);
+  // The poses' own error: KITTI's by default (heading about camera y), what truth_sigma_deg.txt
+  // says when present (one number for every axis, or three).
+  EXPECT_EQ(seq.truth_sigma_deg, Eigen::Vector3d(kKittiPosesTiltSigmaDeg, kKittiPosesHeadingSigmaDeg, kKittiPosesTiltSigmaDeg));
+  writeFile(root / kTruthSigmaFile, "0.0125\n");
+  EXPECT_EQ(loadSequence(root.string()).truth_sigma_deg, Eigen::Vector3d::Constant(0.0125));
+  writeFile(root / kTruthSigmaFile, "0.01 0.02\n0.03\n");
+  EXPECT_EQ(loadSequence(root.string()).truth_sigma_deg, Eigen::Vector3d(0.01, 0.02, 0.03));
   fs::remove_all(root.parent_path());
 }
 
@@ -400,6 +408,14 @@ TEST(Sequence, MalformedInputsNameTheFile) {
   writeFile(kitti / "times.txt", "0.1\n0.0\n");
   expectLoadError(kitti.string(), "times.txt:2");
   fs::remove(kitti / "times.txt");
+  writeFile(kitti / "poses.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 0\n");
+  for (const char* bad : {"-0.01\n", "0.01 0.02\n", "0.01 0.02 0.03 0.04\n", "0.01 -0.02 0.03\n",
+                          "about a hundredth\n", "nan\n", "\n"}) {
+    writeFile(kitti / kTruthSigmaFile, bad);
+    expectLoadError(kitti.string(), kTruthSigmaFile);
+  }
+  fs::remove(kitti / kTruthSigmaFile);
+  fs::remove(kitti / "poses.txt");
   // An unreadable "PNG".
   writeFile(kitti / "image_l" / "000000.png", "not a png");
   expectLoadError(kitti.string(), "000000.png");

@@ -74,7 +74,8 @@ RenderedSequence renderSequence(const RenderSettings& settings);
 cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orientation,
                    const Eigen::Vector3d& position);
 
-/// Writes the KITTI odometry layout: image_l/000000.png ..., calib.txt, poses.txt, times.txt.
+/// Writes the KITTI odometry layout: image_l/000000.png ..., calib.txt, poses.txt, times.txt, and
+/// truth_sigma_deg.txt = 0 (the poses are exact).
 /// Throws std::runtime_error when the folder cannot be written.
 void writeKittiLayout(const RenderedSequence& sequence, const std::string& folder);
 

@@ -15,6 +15,21 @@ struct GyroSample {
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< [rad/s], IMU (body) frame
 };
 
+/// Error [deg] of KITTI's OXTS RT3003 poses on one frame-to-frame rotation about the camera's x
+/// (pitch) and z (roll) axes: the device's specified roll and pitch accuracy.
+constexpr double kKittiPosesTiltSigmaDeg = 0.03;
+/// Error [deg] of KITTI's poses about the camera's y axis (heading): the device's specified
+/// heading accuracy. On kitti_straight's first frames every part of the image agrees on a yaw
+/// 0.10-0.15 deg from the poses' (README, "Covariance model").
+constexpr double kKittiPosesHeadingSigmaDeg = 0.1;
+/// Per-axis error [deg] of EuRoC's state_groundtruth_estimate0 on one 50 ms frame-to-frame
+/// rotation: its orientation between laser-tracker fixes is the ADIS16448's integrated rate, whose
+/// angle random walk (0.66 deg/sqrt(h)) gives 0.0025 deg in 50 ms.
+constexpr double kEurocPosesSigmaDeg = 0.0025;
+/// File of the KITTI layout that overrides the KITTI poses' error: one number [deg] for all three
+/// camera axes or three (x, y, z). The renderer writes 0: its poses are exact.
+constexpr const char* kTruthSigmaFile = "truth_sigma_deg.txt";
+
 /// A sequence of grayscale images with whatever ground truth the folder holds.
 struct Sequence {
   std::string name;                ///< folder name, e.g. "kitti_turn"
@@ -33,6 +48,12 @@ struct Sequence {
   /// state_groundtruth_estimate0, preferred to the gyro), "gyro" (EuRoC imu0, bias included) or
   /// "" (none).
   std::string truth;
+  /// Standard deviation [deg] of the ground truth's own error on one frame-to-frame rotation, about
+  /// the camera's x, y and z axes: what the truth adds to an estimate's error, so the evaluation's
+  /// NEES adds it to the estimate's covariance (the estimate cannot know it). KITTI layout:
+  /// `truth_sigma_deg.txt` when present, else kKittiPosesTiltSigmaDeg about x and z and
+  /// kKittiPosesHeadingSigmaDeg about y; EuRoC poses: kEurocPosesSigmaDeg; zero without pose truth.
+  Eigen::Vector3d truth_sigma_deg = Eigen::Vector3d::Zero();
 
   bool hasPoses() const { return !orientations.empty(); }
   bool hasGyro() const { return !gyro.empty(); }

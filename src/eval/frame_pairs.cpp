@@ -12,6 +12,7 @@
 
 #include "bearing_file.h"
 #include "comparison_front_ends.h"
+#include "visual_gyro/geometry.h"
 #include "visual_gyro/random.h"
 
 namespace visual_gyro {
@@ -29,6 +30,11 @@ void fillTruth(const Sequence& seq, FramePair* p) {
   }
   p->truth.has_rotation = ok;
   p->truth.from_poses = ok && seq.hasPoses();
+  // Each composed frame-to-frame step brings its own truth error.
+  if (p->truth.from_poses) {
+    p->truth.sigma_rad =
+        seq.truth_sigma_deg * (kDegToRad * std::sqrt(static_cast<double>(p->index - p->previous_index)));
+  }
   if (ok) p->truth.rotation = r;
   if (seq.positions.size() == seq.image_paths.size()) {
     p->true_translation = (seq.positions[p->index] - seq.positions[p->previous_index]).norm();

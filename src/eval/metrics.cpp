@@ -28,7 +28,9 @@ FrameErrors scoreFrame(const FrameEstimate& estimate, const FrameTruth& truth) {
     const Eigen::Vector3d error_vector = so3Log(error);
     e.error_vector_deg = error_vector * kRadToDeg;
     if (truth.from_poses && estimate.valid && estimate.has_covariance) {
-      const Eigen::FullPivLU<Eigen::Matrix3d> lu(estimate.covariance);
+      Eigen::Matrix3d seen = estimate.covariance;
+      seen.diagonal() += truth.sigma_rad.cwiseProduct(truth.sigma_rad);
+      const Eigen::FullPivLU<Eigen::Matrix3d> lu(seen);
       if (lu.isInvertible()) e.nees = error_vector.dot(lu.solve(error_vector));
     }
   }

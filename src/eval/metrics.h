@@ -35,6 +35,10 @@ struct FrameTruth {
   /// The rotation comes from poses (not a biased gyro): only then does it judge a covariance.
   bool from_poses = false;
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  /// Standard deviation [rad] of the truth's own rotation error about the camera's x, y and z axes:
+  /// NEES judges the estimate's covariance plus diag(sigma^2), since the error it sees is the
+  /// estimate's and the truth's.
+  Eigen::Vector3d sigma_rad = Eigen::Vector3d::Zero();
   bool has_rate = false;
   Eigen::Vector3d rate = Eigen::Vector3d::Zero();  ///< mean angular velocity, camera frame [rad/s]
 };

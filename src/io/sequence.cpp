@@ -153,6 +153,18 @@ Sequence loadKitti(const fs::path& root) {
       fail(poses, std::to_string(seq.orientations.size()) + " poses for " + std::to_string(seq.image_paths.size()) +
                       " images");
     seq.truth = "kitti_poses";
+    seq.truth_sigma_deg = Eigen::Vector3d(kKittiPosesTiltSigmaDeg, kKittiPosesHeadingSigmaDeg, kKittiPosesTiltSigmaDeg);
+    const fs::path sigma = root / kTruthSigmaFile;
+    if (fs::exists(sigma)) {
+      std::vector<double> v;
+      const auto sigma_lines = readLines(sigma);
+      std::string text;
+      for (const std::string& line : sigma_lines) text += line + " ";
+      const bool parsed = parseNumbers(text, &v) && (v.size() == 1 || v.size() == 3);
+      if (!parsed || !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x) && x >= 0.0; }))
+        fail(sigma, "expected the truth's error [deg] (>= 0): one number for every camera axis, or three (x y z)");
+      seq.truth_sigma_deg = v.size() == 1 ? Eigen::Vector3d::Constant(v[0]) : Eigen::Vector3d(v[0], v[1], v[2]);
+    }
   }
 
   const fs::path times = root / "times.txt";
@@ -320,6 +332,7 @@ void readEurocPoses(const fs::path& file, const Eigen::Vector3d& t_bs, Sequence*
     seq->positions.push_back(R0.transpose() * (camera_in_world[k] - p0));
   }
   seq->truth = "poses";
+  seq->truth_sigma_deg = Eigen::Vector3d::Constant(kEurocPosesSigmaDeg);
 }
 
 Sequence loadEuroc(const fs::path& root) {

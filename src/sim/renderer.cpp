@@ -7,6 +7,7 @@
 #include "visual_gyro/renderer.h"
 #include "visual_gyro/geometry.h"
 #include "visual_gyro/random.h"
+#include "visual_gyro/sequence.h"
 
 #include <algorithm>
 #include <cmath>
@@ -1005,6 +1006,12 @@ void writeKittiLayout(const RenderedSequence& sequence, const std::string& folde
       *times << line;
     }
     check(*times, "times.txt");
+  }
+  {
+    // The poses are the ones the images were rendered from: exact.
+    auto sigma = open(kTruthSigmaFile);
+    *sigma << "0\n";
+    check(*sigma, kTruthSigmaFile);
   }
 }
 
