@@ -55,6 +55,24 @@ std::string sharedOrSkip(const std::string& name, std::string* why) {
   return visual_gyro::test::sharedSequence(name, why);
 }
 
+/// Runs `body(name, folder)` for each of `names` present under the data folder, printing why each
+/// missing one is skipped; returns how many ran.
+template <typename Body>
+int forEachSharedSequence(std::initializer_list<const char*> names, Body body) {
+  int ran = 0;
+  for (const char* name : names) {
+    std::string missing;
+    const std::string folder = sharedOrSkip(name, &missing);
+    if (folder.empty()) {
+      std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
+      continue;
+    }
+    body(name, folder);
+    ++ran;
+  }
+  return ran;
+}
+
 void record(const Figures& f) {
   for (const auto& [key, value] : f) ::testing::Test::RecordProperty(key, std::to_string(value));
 }
@@ -130,14 +148,7 @@ TEST(EurocShake, VoteBeatsFivePointWithoutLockIn) {
 // With sub-pixel positions and tracking the covariance counts the independent matches the spatial
 // jackknife finds and a smaller floor: honest on all three sequences with pose truth.
 TEST(SharedSequences, SubpixelCovarianceIsHonest) {
-  int judged = 0;
-  for (const char* name : {"kitti_turn", "kitti_straight", "euroc_mh01_shake"}) {
-    std::string missing;
-    const std::string folder = sharedOrSkip(name, &missing);
-    if (folder.empty()) {
-      std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
-      continue;
-    }
+  const auto each = [&](const char* name, const std::string& folder) {
     const Figures f = evaluate(folder, "vote", kAccurateFrontEnd);
     record(f);
     std::printf("%s: sub-pixel positions and tracking, NEES mean %.2f, %.0f %% beyond the 99 %% bound\n", name,
@@ -145,8 +156,8 @@ TEST(SharedSequences, SubpixelCovarianceIsHonest) {
     EXPECT_EQ(f.at("vote.invalid"), 0) << name;
     SCOPED_TRACE(name);
     expectHonestCovariance(f, "vote");
-    ++judged;
-  }
+  };
+  const int judged = forEachSharedSequence({"kitti_turn", "kitti_straight", "euroc_mh01_shake"}, each);
   if (judged == 0) GTEST_SKIP() << "no shared sequence with pose truth present under the data folder";
 }
 
@@ -282,14 +293,7 @@ TEST(EurocStatic, SubpixelPositionsFollowTheVibrationTheGyroSees) {
 TEST(SharedSequences, CudaBackendGivesTheCpuFigures) {
   std::string why;
   if (!visual_gyro::cudaBackendUsable(&why)) GTEST_SKIP() << "GPU test skipped: " << why;
-  int compared = 0;
-  for (const char* name : {"kitti_turn", "kitti_straight", "euroc_v101_static"}) {
-    std::string missing;
-    const std::string folder = sharedOrSkip(name, &missing);
-    if (folder.empty()) {
-      std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
-      continue;
-    }
+  const auto each = [&](const char* name, const std::string& folder) {
     const Figures cpu = evaluate(folder, "paper,vote", "--backend cpu");
     const Figures gpu = evaluate(folder, "paper,vote", "--backend cuda");
     record(gpu);
@@ -306,8 +310,8 @@ TEST(SharedSequences, CudaBackendGivesTheCpuFigures) {
         EXPECT_NEAR(g, c, 0.05 * std::abs(c) + 1e-3) << name << " " << m << " " << key;
       }
     }
-    ++compared;
-  }
+  };
+  const int compared = forEachSharedSequence({"kitti_turn", "kitti_straight", "euroc_v101_static"}, each);
   if (compared == 0) GTEST_SKIP() << "no shared sequence present under the data folder";
 }
 
@@ -450,14 +454,7 @@ const char* const kFixedGlobalFrontEnd =
 }  // namespace
 
 TEST(SharedSequences, GuidedAdaptiveFrontEndKeepsVoteAccuracy) {
-  int compared = 0;
-  for (const char* name : {"kitti_turn", "kitti_straight", "euroc_v101_static"}) {
-    std::string missing;
-    const std::string folder = sharedOrSkip(name, &missing);
-    if (folder.empty()) {
-      std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
-      continue;
-    }
+  const auto each = [&](const char* name, const std::string& folder) {
     const Figures now = evaluateVote(folder, "");
     const Figures before = evaluateVote(folder, kFixedGlobalFrontEnd);
     std::printf("%s: vote rotation RMSE %.4f deg with %.0f matches (guided %0.f pairs, %.0f fell back), %.4f deg with "
@@ -467,20 +464,13 @@ TEST(SharedSequences, GuidedAdaptiveFrontEndKeepsVoteAccuracy) {
     EXPECT_EQ(now.at("invalid"), 0) << name;
     EXPECT_GT(now.at("guided_pairs"), 0.9 * now.at("frames")) << name << ": guided matching should carry the run";
     EXPECT_LE(now.at("rot_rmse_deg"), 1.05 * before.at("rot_rmse_deg")) << name;
-    ++compared;
-  }
+  };
+  const int compared = forEachSharedSequence({"kitti_turn", "kitti_straight", "euroc_v101_static"}, each);
   if (compared == 0) GTEST_SKIP() << "no shared sequence present under the data folder";
 }
 
 TEST(SharedSequences, NativeFrontEndAtLeastAsAccurateAsOrbAndKlt) {
-  int compared = 0;
-  for (const char* name : {"kitti_turn", "kitti_straight", "euroc_v101_static"}) {
-    std::string missing;
-    const std::string folder = sharedOrSkip(name, &missing);
-    if (folder.empty()) {
-      std::cout << "[ SKIPPED  ] " << name << ": " << missing << "\n";
-      continue;
-    }
+  const auto each = [&](const char* name, const std::string& folder) {
     // Integer positions (the default), and sub-pixel positions with tracking.
     const Figures native = evaluateVote(folder, "--front-end native");
     const Figures tracking = evaluateVote(folder, kAccurateFrontEnd);
@@ -497,8 +487,8 @@ TEST(SharedSequences, NativeFrontEndAtLeastAsAccurateAsOrbAndKlt) {
       EXPECT_LE(tracking.at("rot_rmse_deg"), f.at("rot_rmse_deg") + tolerance)
           << name << " against " << other << ", sub-pixel positions and tracking";
     }
-    ++compared;
-  }
+  };
+  const int compared = forEachSharedSequence({"kitti_turn", "kitti_straight", "euroc_v101_static"}, each);
   if (compared == 0) GTEST_SKIP() << "no shared sequence present under the data folder";
 }
 
