@@ -151,9 +151,10 @@ struct VoteDiagnostics {
   double prior_offset = std::numeric_limits<double>::quiet_NaN();
   /// Robust scale of the refined inliers' residuals [rad] (the sigma of the covariance).
   double residual_sigma = 0.0;
-  /// Inliers the covariance counts as independent: the inliers over the factor by which the
-  /// spread of the rotation over spatial groups of them exceeds sigma^2 (J^T W J)^-1 (at most the
-  /// inliers; see the covariance model in the README).
+  /// Inliers the covariance counts as independent (at most the inliers). With refined positions,
+  /// the inliers over the factor by which the spread of the rotation over spatial groups of them
+  /// exceeds sigma^2 (J^T W J)^-1; with integer ones, at most kIntegerPositionsEffectiveMatches
+  /// (RotationEstimator::setRefinedPositions; README, "Covariance model").
   double effective_matches = 0.0;
 };
 

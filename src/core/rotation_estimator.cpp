@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <string_view>
 #include <stdexcept>
 
 #include <Eigen/Dense>
@@ -551,7 +552,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     // The prior and the identity are refined whatever their verified count: they are candidates
     // because under strong translation the voted rotations are all biased alike, and then their
     // own verification (a translation sampled from a start far off) undercounts them too.
-    const bool structural = v.source == std::string("prior") || v.source == std::string("identity");
+    const std::string_view source(v.source);
+    const bool structural = source == "prior" || source == "identity";
     if (v.rotation.inliers < kRefineFraction * best_verified && !structural) continue;
     const RefinedRotation r = refineRotation(matches, v.rotation, threshold, settings_.refine_iterations);
     ++refined_count;
