@@ -32,6 +32,25 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
 // Whether match i's bearings are in the same hemisphere at the last rotateAll's rotation.
 inline bool usable(const FrameMatches::Scratch& s, size_t i) { return s.facing[i] > 0.0; }
 
+// J^T J of the pure-rotation residual b_prev x R exp(d) b_cur, without its R^T ... R: with
+// K = [p]x [Rc]x = Rc p^T - (p.Rc) I, K^T K = |Rc|^2 p p^T - (p.Rc)(p Rc^T + Rc p^T) + (p.Rc)^2 I,
+// summed as three terms over the matches added.
+struct PureRotationInformation {
+  Eigen::Matrix3d pp = Eigen::Matrix3d::Zero(), cross = Eigen::Matrix3d::Zero();
+  double d2 = 0.0;
+  void add(const Eigen::Vector3d& p, const Eigen::Vector3d& rc) {
+    const double d = p.dot(rc);
+    pp.noalias() += rc.squaredNorm() * p * p.transpose();
+    cross.noalias() += d * p * rc.transpose();
+    d2 += d * d;
+  }
+  Eigen::Matrix3d sum() const {
+    Eigen::Matrix3d KtK = pp - cross - cross.transpose();
+    KtK.diagonal().array() += d2;
+    return KtK;
+  }
+};
+
 // The matches and the scratch's arrays of the last rotateAll, for the passes.
 passes::MatchArrays matchArrays(const FrameMatches& m) {
   const FrameMatches::Scratch& s = m.scratch;
@@ -210,28 +229,21 @@ RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double th
     if (change < 1e-10) break;
   }
   // Covariance of the right perturbation R exp(d): residual b_prev x R exp(d) b_cur, Jacobian
-  // J = -[p]x R [c]x = -[p]x [Rc]x R. With K = [p]x [Rc]x = Rc p^T - (p.Rc) I,
-  // J^T J = R^T K^T K R and K^T K = |c|^2 p p^T - (p.Rc)(p Rc^T + Rc p^T) + (p.Rc)^2 I: three
-  // sums over the inliers, and the rotation applied once.
+  // J = -[p]x R [c]x = -[p]x [Rc]x R, so J^T J = R^T K^T K R (PureRotationInformation) with the
+  // rotation applied once.
   rotateAll(m, R);
   const double gate2 = (kRotationGateScale * threshold) * (kRotationGateScale * threshold);
-  Eigen::Matrix3d pp = Eigen::Matrix3d::Zero(), cross = Eigen::Matrix3d::Zero();
-  double d2 = 0.0, sum_sq = 0.0;
+  PureRotationInformation information;
+  double sum_sq = 0.0;
   int inliers = 0;
   for (size_t i = 0; i < n; ++i) {
     const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
     if (!usable(s, i) || r2 >= gate2) continue;
-    const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]);
-    const double d = p.dot(rc);
-    pp.noalias() += rc.squaredNorm() * p * p.transpose();
-    cross.noalias() += d * p * rc.transpose();
-    d2 += d * d;
+    information.add(m.previous(i), Eigen::Vector3d(s.rx[i], s.ry[i], s.rz[i]));
     sum_sq += r2;
     ++inliers;
   }
-  Eigen::Matrix3d KtK = pp - cross - cross.transpose();
-  KtK.diagonal().array() += d2;
-  const Eigen::Matrix3d A = R.transpose() * KtK * R;
+  const Eigen::Matrix3d A = R.transpose() * information.sum() * R;
   out.rotation = R;
   out.inliers = inliers;
   out.pure_rotation = true;
@@ -599,7 +611,6 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   }
   const int groups = k * k;
   constexpr int kMaxGroups = 16;
-  const int dim = pure ? 3 : 5;
   Eigen::Matrix<double, 5, 5> A_group[kMaxGroups];
   Eigen::Matrix<double, 5, 1> g_group[kMaxGroups];
   for (int g = 0; g < groups; ++g) {
@@ -609,16 +620,14 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   if (pure) {
     // Residual n = b_prev x R b_cur, J = -[p]x [Rc]x R: J^T J as in refinePureRotation's covariance,
     // and J^T n = R^T (p . Rc) n; summed with R^T left out, applied once per group.
+    PureRotationInformation information[kMaxGroups];
     for (uint32_t i : order) {
-      const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]), normal(s.nx[i], s.ny[i], s.nz[i]);
-      const double d = p.dot(rc);
-      Eigen::Matrix3d KtK = rc.squaredNorm() * p * p.transpose() - d * (p * rc.transpose() + rc * p.transpose());
-      KtK.diagonal().array() += d * d;
-      A_group[s.group[i]].topLeftCorner<3, 3>() += KtK;
-      g_group[s.group[i]].head<3>() += d * normal;
+      const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]);
+      information[s.group[i]].add(p, rc);
+      g_group[s.group[i]].head<3>() += p.dot(rc) * Eigen::Vector3d(s.nx[i], s.ny[i], s.nz[i]);
     }
     for (int g = 0; g < groups; ++g) {
-      A_group[g].topLeftCorner<3, 3>() = R.transpose() * A_group[g].topLeftCorner<3, 3>() * R;
+      A_group[g].topLeftCorner<3, 3>() = R.transpose() * information[g].sum() * R;
       g_group[g].head<3>() = R.transpose() * g_group[g].head<3>();
     }
   } else {

@@ -216,18 +216,19 @@ int run(int argc, char** argv) {
   base.threshold_rad = 1.0 / seq.camera.fx();  // 1 px-equivalent
   base.seed = settings.estimator.seed;
 
+  // The estimators' covariance model follows the front end's positions.
+  const bool refined_positions = eval::refinesPositions(o.pairs.front_end, settings);
   if (!o.sweep.csv_path.empty()) {
     o.sweep.methods = o.methods;
     o.sweep.seed = o.pairs.seed;
-    o.sweep.refined_positions = eval::refinesPositions(o.pairs.front_end, settings);
+    o.sweep.refined_positions = refined_positions;
     eval::timingSweep(seq.name, 1.0 / seq.camera.fx(), o.sweep, settings, base, pairs);
     return 0;
   }
 
   std::vector<eval::MethodSummary> summaries;
   for (const std::string& method : o.methods) {
-    const std::unique_ptr<eval::MethodRunner> runner =
-        eval::makeRunner(method, settings, base, eval::refinesPositions(o.pairs.front_end, settings));
+    const std::unique_ptr<eval::MethodRunner> runner = eval::makeRunner(method, settings, base, refined_positions);
     summaries.push_back(eval::evaluateMethod(method, runner.get(), pairs));
     summaries.back().front_end = o.pairs.front_end;
     if (o.pairs.front_end == "native") summaries.back().matching = findSetting("matching")->text(settings);
