@@ -36,7 +36,9 @@ std::vector<cv::Mat> kernelTestImages() {
   return {noise, checker, cv::Mat(64, 64, CV_8UC1, cv::Scalar(255))};
 }
 
-TEST(PatchAlignmentKernels, VectorKernelsGiveThePortableIntegersExactly) {
+// Every template and correlation of `build_template` and `correlate` over the test images, against
+// the portable kernels; returns how many were compared (fails the test on the first difference).
+int compareWithPortable(pa::TemplateKernel build_template, pa::CorrelationKernel correlate) {
   int compared = 0;
   for (const cv::Mat& image : kernelTestImages()) {
     for (int y = 1; y + pa::kSide + 1 < image.rows; y += 3) {
@@ -45,25 +47,50 @@ TEST(PatchAlignmentKernels, VectorKernelsGiveThePortableIntegersExactly) {
         std::memset(&portable, 0x5a, sizeof(portable));  // stale contents must not matter
         std::memset(&vector, 0xa5, sizeof(vector));
         pa::buildTemplatePortable(image.ptr<uint8_t>(y) + x, image.step[0], &portable);
-        pa::templateKernel()(image.ptr<uint8_t>(y) + x, image.step[0], &vector);
-        ASSERT_TRUE(sameTemplate(portable, vector)) << "template at (" << x << ", " << y << ")";
+        build_template(image.ptr<uint8_t>(y) + x, image.step[0], &vector);
+        EXPECT_TRUE(sameTemplate(portable, vector)) << "template at (" << x << ", " << y << ")";
+        if (!sameTemplate(portable, vector)) return compared;
         // Correlate against a few other places of the image, as the alignment's shifts do.
         for (const cv::Point offset : {cv::Point(0, 0), cv::Point(-1, 2), cv::Point(3, -1)}) {
           const int cx = std::min(std::max(x + offset.x, 0), image.cols - pa::kStride);
           const int cy = std::min(std::max(y + offset.y, 0), image.rows - pa::kSide);
           const uint8_t* top_left = image.ptr<uint8_t>(cy) + cx;
           const pa::PatchCorrelation a = pa::correlatePortable(portable, top_left, image.step[0]);
-          const pa::PatchCorrelation b = pa::correlationKernel()(vector, top_left, image.step[0]);
-          ASSERT_EQ(a.x, b.x);
-          ASSERT_EQ(a.y, b.y);
-          ASSERT_EQ(a.intensity, b.intensity);
+          const pa::PatchCorrelation b = correlate(vector, top_left, image.step[0]);
+          EXPECT_EQ(a.x, b.x);
+          EXPECT_EQ(a.y, b.y);
+          EXPECT_EQ(a.intensity, b.intensity);
+          if (a.x != b.x || a.y != b.y || a.intensity != b.intensity) return compared;
           ++compared;
         }
       }
     }
   }
-  std::printf("%d template/correlation pairs compared\n", compared);
-  EXPECT_GT(compared, 500);
+  return compared;
+}
+
+TEST(PatchAlignmentKernels, VectorKernelsGiveThePortableIntegersExactly) {
+  int sets_compared = 0;
+  for (const pa::KernelSet set : {pa::KernelSet::kSse2, pa::KernelSet::kAvx2}) {
+    const pa::TemplateKernel build_template = pa::templateKernelFor(set);
+    const pa::CorrelationKernel correlate = pa::correlationKernelFor(set);
+    ASSERT_EQ(build_template == nullptr, correlate == nullptr) << "a set has both kernels or neither";
+    if (build_template == nullptr) {
+      std::printf("kernel set %d: not in this build or not on this CPU, not compared\n", static_cast<int>(set));
+      continue;
+    }
+    const int compared = compareWithPortable(build_template, correlate);
+    std::printf("kernel set %d: %d template/correlation pairs compared\n", static_cast<int>(set), compared);
+    EXPECT_GT(compared, 500);
+    ++sets_compared;
+  }
+  // x86-64 builds always have SSE2; elsewhere only the portable kernels exist (nothing to compare).
+#if defined(__SSE2__)
+  EXPECT_GE(sets_compared, 1);
+#endif
+  // The kernels in use are one of the sets.
+  EXPECT_NE(pa::templateKernel(), nullptr);
+  EXPECT_NE(pa::correlationKernel(), nullptr);
 }
 
 // A smooth random pattern sampled at a sub-pixel shift.

@@ -1,7 +1,7 @@
 // Sub-pixel alignment of a previous corner's patch with the current image (internal to the core
 // library; not installed): the kernels of FeatureFrontEnd::refineMatches. Every sum is an exact
-// integer sum, so the SSE2 kernels (x86-64's baseline) and the portable ones give the same result
-// bit for bit, whatever order they add in.
+// integer sum, so the vector kernels (SSE2, x86-64's baseline, and AVX2 where the CPU has it) and
+// the portable ones give the same result bit for bit, whatever order they add in.
 #pragma once
 
 #include <cstddef>
@@ -52,7 +52,20 @@ using CorrelationKernel = PatchCorrelation (*)(const PatchTemplate& patch, const
 void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* patch);
 PatchCorrelation correlatePortable(const PatchTemplate& patch, const uint8_t* top_left, size_t step);
 
-/// The fastest kernels this build has (SSE2 on x86-64, else the portable ones).
+/// The instruction sets the kernels are built for.
+enum class KernelSet {
+  kPortable,  ///< plain loops (any CPU)
+  kSse2,      ///< 16 pixels in two registers (every x86-64 CPU)
+  kAvx2,      ///< a row in one register (x86-64 CPUs that report AVX2; chosen at run time)
+};
+
+/// The kernels for `set`, or nullptr when this build or this CPU cannot run them. All give the
+/// portable kernels' integers exactly; the tests compare each set with them.
+TemplateKernel templateKernelFor(KernelSet set);
+CorrelationKernel correlationKernelFor(KernelSet set);
+
+/// The fastest kernels this build and CPU run (AVX2, else SSE2 on x86-64, else the portable ones;
+/// chosen once).
 TemplateKernel templateKernel();
 CorrelationKernel correlationKernel();
 

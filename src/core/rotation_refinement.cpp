@@ -4,6 +4,7 @@
 #include "visual_gyro/random.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <Eigen/Dense>
@@ -269,6 +270,15 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
+// Zero bearings from the `count`-th gathered place to the end of its chunk.
+void padGathered(double* const out[6], size_t count, bool interleaved) {
+  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  for (size_t k = count; k < padded; ++k) {
+    const size_t at = passes::gatheredPosition(k, interleaved);
+    for (int a = 0; a < 6; ++a) out[a][at] = 0.0;
+  }
+}
+
 // Gathers every stride-th match whose keep[i] is not zero (every match when keep is nullptr) into
 // the six arrays `to` (b_prev, then b_cur), padded with zero bearings to whole chunks, where the
 // summing pass of this CPU wants them (passes::PassTable). Returns the number gathered.
@@ -295,11 +305,29 @@ size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, s
     out[5][at] = m.cz[i];
     count += keep == nullptr || keep[i] != 0.0;
   }
-  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
-  for (size_t k = count; k < padded; ++k) {
-    const size_t at = passes::gatheredPosition(k, interleaved);
-    for (int a = 0; a < 6; ++a) out[a][at] = 0.0;
+  padGathered(out, count, interleaved);
+  return count;
+}
+
+// Gathers the `count` matches listed in `indices`, in that order, as gatherMatches does.
+size_t gatherListed(const FrameMatches& m, const uint32_t* indices, size_t count, std::vector<double>* const to[6]) {
+  const size_t capacity = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  const bool interleaved = passes::passes().interleaved;
+  double* out[6];
+  for (int a = 0; a < 6; ++a) {
+    if (to[a]->size() < capacity) to[a]->resize(capacity);
+    out[a] = to[a]->data();
   }
+  for (size_t k = 0; k < count; ++k) {
+    const size_t at = passes::gatheredPosition(k, interleaved), i = indices[k];
+    out[0][at] = m.px[i];
+    out[1][at] = m.py[i];
+    out[2][at] = m.pz[i];
+    out[3][at] = m.cx[i];
+    out[4][at] = m.cy[i];
+    out[5][at] = m.cz[i];
+  }
+  padGathered(out, count, interleaved);
   return count;
 }
 
@@ -631,12 +659,21 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
       g_group[g].head<3>() = R.transpose() * g_group[g].head<3>();
     }
   } else {
-    // Each group's normal equations from the covariance's own summing pass, on the group alone.
-    s.weights.resize(n);
+    // Each group's normal equations from the covariance's own summing pass, on the group alone,
+    // its matches in index order as the covariance pass sums them. The groups' members are listed
+    // in one pass (a counting sort by group) rather than found by a scan of every match per group.
+    std::array<size_t, kMaxGroups + 1> start{};
+    for (uint32_t i : order) ++start[s.group[i] + 1];
+    for (int g = 0; g < groups; ++g) start[g + 1] += start[g];
+    s.members.resize(count);
+    std::array<size_t, kMaxGroups> cursor;
+    std::copy(start.begin(), start.begin() + groups, cursor.begin());
+    for (size_t i = 0; i < n; ++i) {
+      if (s.group[i] >= 0) s.members[cursor[s.group[i]]++] = static_cast<uint32_t>(i);
+    }
     std::vector<double>* const to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
     for (int g = 0; g < groups; ++g) {
-      for (size_t i = 0; i < n; ++i) s.weights[i] = s.group[i] == g ? 1.0 : 0.0;
-      s.gathered = gatherMatches(m, s.weights.data(), 1, to);
+      s.gathered = gatherListed(m, s.members.data() + start[g], start[g + 1] - start[g], to);
       NormalEquations ne;
       accumulateEpipolar(gatheredInScratch(m), R, refined.translation, threshold, Weighting::kInliers, &ne);
       A_group[g] = ne.A;

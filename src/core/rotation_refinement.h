@@ -59,6 +59,7 @@ class FrameMatches {
     /// The jackknife's inliers, ordered into spatial groups, and each match's group (-1: none).
     std::vector<uint32_t> order;
     std::vector<int> group;
+    std::vector<uint32_t> members;  ///< the jackknife's inliers by group, each group in index order
   };
   Scratch scratch;
 };
