@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "patch_alignment.h"
 
@@ -91,6 +92,94 @@ TEST(PatchAlignmentKernels, VectorKernelsGiveThePortableIntegersExactly) {
   // The kernels in use are one of the sets.
   EXPECT_NE(pa::templateKernel(), nullptr);
   EXPECT_NE(pa::correlationKernel(), nullptr);
+}
+
+// The similarity check's sums: every kernel gives the portable integers at every weight, including
+// 0 and kBilinearOne and the extreme intensities.
+TEST(PatchAlignmentKernels, MomentsKernelsGiveThePortableIntegersExactly) {
+  int compared = 0;
+  for (const pa::KernelSet set : {pa::KernelSet::kSse2, pa::KernelSet::kAvx2}) {
+    const pa::MomentsKernel moments = pa::momentsKernelFor(set);
+    if (moments == nullptr) {
+      std::printf("kernel set %d: no moments kernel in this build or on this CPU, not compared\n",
+                  static_cast<int>(set));
+      continue;
+    }
+    for (const cv::Mat& image : kernelTestImages()) {
+      for (int y = 0; y + pa::kSide + 1 < image.rows; y += 7) {
+        for (int x = 0; x + pa::kStride + 1 < image.cols; x += 9) {
+          for (const int ax : {0, 1, 37, 64, 127, pa::kBilinearOne}) {
+            for (const int ay : {0, 5, 64, 100, pa::kBilinearOne}) {
+              const uint8_t* previous = image.ptr<uint8_t>(image.rows - pa::kSide - y - 1) + x;
+              const uint8_t* current = image.ptr<uint8_t>(y) + x;
+              const pa::PatchMoments a = pa::momentsPortable(previous, image.step[0], current, image.step[0], ax, ay);
+              const pa::PatchMoments b = moments(previous, image.step[0], current, image.step[0], ax, ay);
+              ASSERT_EQ(a.sum_a, b.sum_a);
+              ASSERT_EQ(a.sum_b, b.sum_b);
+              ASSERT_EQ(a.sum_aa, b.sum_aa);
+              ASSERT_EQ(a.sum_bb, b.sum_bb);
+              ASSERT_EQ(a.sum_ab, b.sum_ab);
+              ++compared;
+            }
+          }
+        }
+      }
+    }
+  }
+  std::printf("%d moment sums compared\n", compared);
+  EXPECT_NE(pa::momentsKernel(), nullptr);
+}
+
+// The correlation from the integer sums against one computed in doubles with exact bilinear
+// weights: the quantisation (1/128 px, 1/16 grey level) moves it by far less than the tracking
+// threshold's resolution; identical patches give 1, inverted ones -1, a flat one -1.
+TEST(PatchAlignment, CorrelationFromMomentsMatchesTheExactOne) {
+  cv::Mat image(64, 64, CV_8UC1);
+  cv::RNG rng(3);
+  rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(image, image, cv::Size(5, 5), 1.2);
+  const auto exact = [&](const uint8_t* previous, const uint8_t* current, double fx, double fy) {
+    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    for (int v = 0; v < pa::kSide; ++v)
+      for (int u = 0; u < pa::kSide; ++u) {
+        const uint8_t* c = current + v * image.step[0] + u;
+        const double a = previous[v * image.step[0] + u];
+        const double b = (1 - fx) * (1 - fy) * c[0] + fx * (1 - fy) * c[1] + (1 - fx) * fy * c[image.step[0]] +
+                         fx * fy * c[image.step[0] + 1];
+        sa += a, sb += b, saa += a * a, sbb += b * b, sab += a * b;
+      }
+    const double n = pa::kSide * pa::kSide;
+    return (sab - sa * sb / n) / std::sqrt((saa - sa * sa / n) * (sbb - sb * sb / n));
+  };
+  double largest = 0.0;
+  int compared = 0;
+  for (int y = 0; y + pa::kSide + 1 < image.rows; y += 4) {
+    for (int x = 0; x + pa::kStride + 1 < image.cols; x += 4) {
+      const uint8_t* previous = image.ptr<uint8_t>(20) + 20;
+      const uint8_t* current = image.ptr<uint8_t>(y) + x;
+      const double fx = rng.uniform(0.0, 1.0), fy = rng.uniform(0.0, 1.0);
+      const int ax = static_cast<int>(std::lround(fx * pa::kBilinearOne));
+      const int ay = static_cast<int>(std::lround(fy * pa::kBilinearOne));
+      const double quantised =
+          pa::zeroMeanCorrelation(pa::momentsKernel()(previous, image.step[0], current, image.step[0], ax, ay));
+      largest = std::max(largest, std::abs(quantised - exact(previous, current, fx, fy)));
+      ++compared;
+    }
+  }
+  std::printf("%d correlations: largest difference from the exact one %.5f\n", compared, largest);
+  EXPECT_GT(compared, 100);
+  EXPECT_LT(largest, 0.01);
+  const uint8_t* patch = image.ptr<uint8_t>(10) + 10;
+  EXPECT_NEAR(pa::zeroMeanCorrelation(pa::momentsKernel()(patch, image.step[0], patch, image.step[0], 0, 0)), 1.0,
+              1e-12);
+  cv::Mat inverted = 255 - image;
+  EXPECT_NEAR(pa::zeroMeanCorrelation(pa::momentsKernel()(patch, image.step[0], inverted.ptr<uint8_t>(10) + 10,
+                                                          inverted.step[0], 0, 0)),
+              -1.0, 1e-12);
+  const cv::Mat flat(32, 32, CV_8UC1, cv::Scalar(77));
+  EXPECT_EQ(pa::zeroMeanCorrelation(pa::momentsKernel()(patch, image.step[0], flat.ptr<uint8_t>(2) + 2, flat.step[0],
+                                                        40, 90)),
+            -1.0);
 }
 
 // A smooth random pattern sampled at a sub-pixel shift.

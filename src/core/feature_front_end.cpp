@@ -680,33 +680,19 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
 
 namespace {
 
-/// Zero-mean normalised cross-correlation of the (2h + 1)^2 patch of `previous` centred on the
-/// pixel (px, py) with the patch of `current` centred on (x, y), sampled bilinearly; -1 when
-/// either patch is flat.
+/// Zero-mean normalised cross-correlation of the kRefineHalfWindow patch of `previous` centred on
+/// the pixel (px, py) with the patch of `current` centred on (x, y), sampled bilinearly (to
+/// 1/patch_alignment::kBilinearOne px); -1 when either patch is flat. The caller has checked that
+/// both patches and the row and column after the current one lie inside their images.
 double patchCorrelation(const cv::Mat& previous, int px, int py, const cv::Mat& current, double x, double y,
-                        int h) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const double fx = x - x0, fy = y - y0;
-  const double w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
-  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
-  for (int v = -h; v <= h; ++v) {
-    const uint8_t* a = previous.ptr<uint8_t>(py + v) + px;
-    const uint8_t* b0 = current.ptr<uint8_t>(y0 + v) + x0;
-    const uint8_t* b1 = current.ptr<uint8_t>(y0 + v + 1) + x0;
-    for (int u = -h; u <= h; ++u) {
-      const double va = a[u];
-      const double vb = w00 * b0[u] + w01 * b0[u + 1] + w10 * b1[u] + w11 * b1[u + 1];
-      sa += va;
-      sb += vb;
-      saa += va * va;
-      sbb += vb * vb;
-      sab += va * vb;
-    }
-  }
-  const double n = (2 * h + 1) * (2 * h + 1);
-  const double var_a = saa - sa * sa / n, var_b = sbb - sb * sb / n;
-  if (!(var_a > 0.0) || !(var_b > 0.0)) return -1.0;
-  return (sab - sa * sb / n) / std::sqrt(var_a * var_b);
+                        patch_alignment::MomentsKernel moments) {
+  constexpr int h = kRefineHalfWindow;
+  const double left = x - h, top = y - h;
+  const int x0 = static_cast<int>(std::floor(left)), y0 = static_cast<int>(std::floor(top));
+  const int ax = static_cast<int>(std::lround((left - x0) * patch_alignment::kBilinearOne));
+  const int ay = static_cast<int>(std::lround((top - y0) * patch_alignment::kBilinearOne));
+  return patch_alignment::zeroMeanCorrelation(moments(previous.ptr<uint8_t>(py - h) + px - h, previous.step[0],
+                                                      current.ptr<uint8_t>(y0) + x0, current.step[0], ax, ay));
 }
 
 }  // namespace
@@ -785,6 +771,7 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
 
   const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
   const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
+  const patch_alignment::MomentsKernel moments = patch_alignment::momentsKernel();
   patch_alignment::PatchTemplate patch;
   for (size_t i = 0; i < n_previous; ++i) {
     if (w.matched[i]) continue;
@@ -798,7 +785,7 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
     if (!alignCorner(previous_gray, current_gray, p, qx, qy, build_template, correlate, &patch, &aligned)) continue;
     const int px = static_cast<int>(std::lround(p.x)), py = static_cast<int>(std::lround(p.y));
     if (patchCorrelation(previous_gray, px, py, current_gray, aligned.x - (p.x - px), aligned.y - (p.y - py),
-                         kRefineHalfWindow) < settings_.min_track_correlation) {
+                         moments) < settings_.min_track_correlation) {
       continue;
     }
     tracks->push_back({static_cast<int>(i), cv::Point2f(static_cast<float>(aligned.x), static_cast<float>(aligned.y))});

@@ -53,6 +53,38 @@ PatchCorrelation correlatePortable(const PatchTemplate& patch, const uint8_t* to
   return c;
 }
 
+PatchMoments momentsPortable(const uint8_t* previous_top_left, size_t previous_step, const uint8_t* current_top_left,
+                             size_t current_step, int ax, int ay) {
+  PatchMoments m{0, 0, 0, 0, 0};
+  for (int v = 0; v < kSide; ++v) {
+    const uint8_t* a = previous_top_left + v * previous_step;
+    const uint8_t* c0 = current_top_left + v * current_step;
+    const uint8_t* c1 = c0 + current_step;
+    for (int u = 0; u < kSide; ++u) {
+      const int32_t h0 = (kBilinearOne - ax) * c0[u] + ax * c0[u + 1];
+      const int32_t h1 = (kBilinearOne - ax) * c1[u] + ax * c1[u + 1];
+      const int32_t b = ((kBilinearOne - ay) * h0 + ay * h1 + (1 << 9)) >> 10;
+      const int32_t va = a[u];
+      m.sum_a += va;
+      m.sum_b += b;
+      m.sum_aa += va * va;
+      m.sum_bb += b * b;
+      m.sum_ab += va * b;
+    }
+  }
+  return m;
+}
+
+double zeroMeanCorrelation(const PatchMoments& m) {
+  // n times the (co)variances, exact in 64 bits.
+  constexpr int64_t n = kSide * kSide;
+  const int64_t var_a = n * m.sum_aa - int64_t{m.sum_a} * m.sum_a;
+  const int64_t var_b = n * m.sum_bb - int64_t{m.sum_b} * m.sum_b;
+  if (var_a <= 0 || var_b <= 0) return -1.0;
+  const int64_t covariance = n * m.sum_ab - int64_t{m.sum_a} * m.sum_b;
+  return static_cast<double>(covariance) / std::sqrt(static_cast<double>(var_a) * static_cast<double>(var_b));
+}
+
 #if defined(__SSE2__)
 namespace {
 
@@ -193,8 +225,65 @@ __attribute__((target("avx2"))) PatchCorrelation correlateAvx2(const PatchTempla
   return {horizontalSumAvx2(sx), horizontalSumAvx2(sy), horizontalSumAvx2(_mm256_madd_epi16(si, _mm256_set1_epi16(1)))};
 }
 
+// A row at once: the horizontal blend in 16 bits (at most 255 * kBilinearOne), the vertical one
+// as pairs (h0, h1) . (kBilinearOne - ay, ay) in 32 bits, packed back to 16 bits (at most 4080).
+__attribute__((target("avx2"))) PatchMoments momentsAvx2(const uint8_t* previous_top_left, size_t previous_step,
+                                                         const uint8_t* current_top_left, size_t current_step, int ax,
+                                                         int ay) {
+  const __m256i zero = _mm256_setzero_si256(), ones = _mm256_set1_epi16(1), lanes = rowLanes();
+  const __m256i left = _mm256_set1_epi16(static_cast<int16_t>(kBilinearOne - ax));
+  const __m256i right = _mm256_set1_epi16(static_cast<int16_t>(ax));
+  const __m256i vertical = _mm256_set1_epi32((ay << 16) | (kBilinearOne - ay));
+  const __m256i rounding = _mm256_set1_epi32(1 << 9);
+  __m256i sa = zero, sb = zero, saa = zero, sbb = zero, sab = zero;
+  __m256i h_above = _mm256_add_epi16(_mm256_mullo_epi16(widenRow(current_top_left), left),
+                                     _mm256_mullo_epi16(widenRow(current_top_left + 1), right));
+  for (int v = 0; v < kSide; ++v) {
+    const uint8_t* below = current_top_left + (v + 1) * current_step;
+    const __m256i h_below =
+        _mm256_add_epi16(_mm256_mullo_epi16(widenRow(below), left), _mm256_mullo_epi16(widenRow(below + 1), right));
+    const __m256i low = _mm256_srai_epi32(
+        _mm256_add_epi32(_mm256_madd_epi16(_mm256_unpacklo_epi16(h_above, h_below), vertical), rounding), 10);
+    const __m256i high = _mm256_srai_epi32(
+        _mm256_add_epi32(_mm256_madd_epi16(_mm256_unpackhi_epi16(h_above, h_below), vertical), rounding), 10);
+    // Both unpacks work within 128-bit halves and the pack undoes their order.
+    const __m256i b = _mm256_and_si256(_mm256_packs_epi32(low, high), lanes);
+    const __m256i a = _mm256_and_si256(widenRow(previous_top_left + v * previous_step), lanes);
+    sa = _mm256_add_epi32(sa, _mm256_madd_epi16(a, ones));
+    sb = _mm256_add_epi32(sb, _mm256_madd_epi16(b, ones));
+    saa = _mm256_add_epi32(saa, _mm256_madd_epi16(a, a));
+    sbb = _mm256_add_epi32(sbb, _mm256_madd_epi16(b, b));
+    sab = _mm256_add_epi32(sab, _mm256_madd_epi16(a, b));
+    h_above = h_below;
+  }
+  return {horizontalSumAvx2(sa), horizontalSumAvx2(sb), horizontalSumAvx2(saa), horizontalSumAvx2(sbb),
+          horizontalSumAvx2(sab)};
+}
+
 }  // namespace
 #endif
+
+MomentsKernel momentsKernelFor(KernelSet set) {
+  switch (set) {
+    case KernelSet::kPortable:
+      return momentsPortable;
+    case KernelSet::kSse2:
+      return nullptr;
+    case KernelSet::kAvx2:
+#if defined(__x86_64__) && defined(__GNUC__)
+      return cpu_features::hasAvx2() ? momentsAvx2 : nullptr;
+#else
+      return nullptr;
+#endif
+  }
+  return nullptr;
+}
+
+MomentsKernel momentsKernel() {
+  static const MomentsKernel kernel =
+      momentsKernelFor(KernelSet::kAvx2) != nullptr ? momentsKernelFor(KernelSet::kAvx2) : momentsPortable;
+  return kernel;
+}
 
 TemplateKernel templateKernelFor(KernelSet set) {
   switch (set) {

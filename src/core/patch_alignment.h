@@ -69,6 +69,39 @@ CorrelationKernel correlationKernelFor(KernelSet set);
 TemplateKernel templateKernel();
 CorrelationKernel correlationKernel();
 
+/// Bilinear weights of the similarity check: a sub-pixel offset in 1/kBilinearOne px per axis.
+constexpr int kBilinearOne = 128;
+
+/// Integer sums of the similarity check over kSide x kSide pixels: a = the previous patch's
+/// intensities, b = the current image's, interpolated and in 1/16 grey level.
+struct PatchMoments {
+  int32_t sum_a, sum_b, sum_aa, sum_bb, sum_ab;
+};
+
+/// The similarity check's sums: the previous patch whose top-left is `previous_top_left` against
+/// the current image whose top-left is `current_top_left` moved by (ax, ay) / kBilinearOne px
+/// (0 <= ax, ay <= kBilinearOne), interpolated bilinearly: b = ((kBilinearOne - ay) h(row) +
+/// ay h(row + 1) + 2^9) >> 10 with h(r) = (kBilinearOne - ax) I(r, u) + ax I(r, u + 1). Reads
+/// kSide rows of 16 bytes of the previous image and kSide + 1 rows of 17 bytes of the current one.
+/// Exact integers (at most 121 * 4080^2 < 2^31), so every kernel gives the same sums.
+using MomentsKernel = PatchMoments (*)(const uint8_t* previous_top_left, size_t previous_step,
+                                       const uint8_t* current_top_left, size_t current_step, int ax, int ay);
+
+/// Plain loops: the reference.
+PatchMoments momentsPortable(const uint8_t* previous_top_left, size_t previous_step, const uint8_t* current_top_left,
+                             size_t current_step, int ax, int ay);
+
+/// The moments kernel for `set`, or nullptr when this build or CPU has none (SSE2 has none: the
+/// portable kernel serves there).
+MomentsKernel momentsKernelFor(KernelSet set);
+
+/// The fastest moments kernel this build and CPU run (chosen once).
+MomentsKernel momentsKernel();
+
+/// Zero-mean normalised cross-correlation of the two patches `moments` summed (-1..1); -1 when
+/// either patch is flat.
+double zeroMeanCorrelation(const PatchMoments& moments);
+
 /// Translational inverse-compositional Lucas-Kanade: the shift d (|d| <= kMaxShift per axis) such
 /// that the current image at `current_top_left` + d looks like `patch`, with the brightness
 /// offset between the two removed. `current_top_left` is the unshifted patch's top-left; the
