@@ -199,6 +199,11 @@ class FeatureFrontEnd {
     cv::Size grid_size;
     std::vector<int> cell_count;
     std::vector<uint8_t> redetect, chosen;
+    // Cells the last detection found short of their share at fast_threshold, for the detection
+    // key it was made with (image size, grid, both thresholds, share): only a guide to where the
+    // strong pass can be skipped, never a change to the corners.
+    std::vector<uint8_t> short_cells;
+    std::array<int, 7> short_cells_key{};
     cv::Mat smoothed;
     std::vector<uint16_t> smoothing;  // the Gaussian's fixed-point rows
     // OpenCV's fixed-point Gaussian weights (centre first) for gaussian_sigma, and whether the

@@ -303,17 +303,25 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   constexpr int kFastMargin = 4;
   const int margin = kDetectBorder - kFastMargin;
   const cv::Rect fast_area(margin, margin, width - 2 * margin, height - 2 * margin);
-  // The package's FAST detector: cv::FAST's corners and scores on the same area, in less time.
-  w.corners.clear();
-  fast_detector::detect(gray, fast_area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
-  w.candidates.clear();
-  w.cell_count.assign(n_cells, 0);
-  for (const cv::Point3i& corner : w.corners) {
-    if (!inside(corner.x, corner.y)) continue;
-    const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
-    w.candidates.push_back(key);
-    ++w.cell_count[cellOf(key)];
-  }
+  // Cell bounds as cell_of_x and cell_of_y assign them: x in [x0, x1), y in [y0, y1).
+  auto cellBounds = [&](int cx0, int cx1, int cy) {
+    const int x0 = (cx0 * width + cols - 1) / cols, x1 = ((cx1 + 1) * width + cols - 1) / cols;
+    const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
+    return cv::Rect(x0, y0, x1 - x0, y1 - y0);
+  };
+  // Cells [cx0, cx1] of grid row cy widened by kFastMargin, inside `limit`: FAST there gives the
+  // cells' corners exactly as FAST on all of `limit` does.
+  auto searchArea = [&](int cx0, int cx1, int cy, const cv::Rect& limit) {
+    const cv::Rect cells = cellBounds(cx0, cx1, cy);
+    return cv::Rect(cells.x - kFastMargin, cells.y - kFastMargin, cells.width + 2 * kFastMargin,
+                    cells.height + 2 * kFastMargin) &
+           limit;
+  };
+  constexpr int kFastRadius = 3;
+  auto fastFits = [&](const cv::Rect& area) {
+    return area.width >= 2 * kFastRadius + 1 && area.height >= 2 * kFastRadius + 1;
+  };
+  const cv::Rect whole_image(0, 0, width, height);
 
   // Adaptive threshold: when the strong corners cannot fill the budget, each cell short of its
   // share is detected again at the floor threshold, as ORB-SLAM does, so dim or low-contrast
@@ -322,44 +330,107 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   // needs FAST to find again in the next frame rarely matches (it would only take the place of a
   // strong one), while tracking needs no second detection, and corners spread over weak regions
   // are what separates rotation from translation near structure. FAST's score is the largest
-  // threshold at which a pixel is still a corner, so the corners that passed the first threshold
-  // are found again (and ranked first).
-  if (settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0 &&
-      (w.candidates.size() < budget || settings_.track_unmatched)) {
-    // FAST needs 3 pixels around a candidate: the cell is widened by that much, then only corners
-    // inside the cell itself are kept.
-    constexpr int kFastRadius = 3;
-    auto searchArea = [&](int cell) {
-      const int cx = cell % cols, cy = cell / cols;
-      // Cell bounds as cell_of_x and cell_of_y assign them: x in [x0, x1), y in [y0, y1).
-      const int x0 = (cx * width + cols - 1) / cols, x1 = ((cx + 1) * width + cols - 1) / cols;
-      const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
-      const int rx0 = std::max(0, x0 - kFastRadius), ry0 = std::max(0, y0 - kFastRadius);
-      const int rx1 = std::min(width, x1 + kFastRadius), ry1 = std::min(height, y1 + kFastRadius);
-      return cv::Rect(rx0, ry0, rx1 - rx0, ry1 - ry0);
-    };
+  // threshold at which a pixel is still a corner, and non-max suppression compares scores, so a
+  // cell's corners at the floor whose score reaches fast_threshold are its strong corners: a
+  // cell holds its strong corners when they fill its share, else all its corners at the floor.
+  const bool adaptive = settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0;
+  // With tracking every short cell is detected at the floor, so a cell the last frame found short
+  // (and likely short again) is detected at the floor only: its strong corners come from that
+  // pass. A wrong guess costs time, not corners: a skipped cell that turns out to hold its share
+  // keeps only its strong corners, and a scanned one that falls short is detected again.
+  const std::array<int, 7> short_key = {width, height, cols, rows, settings_.fast_threshold,
+                                        settings_.min_fast_threshold, per_cell};
+  const bool guess_short = adaptive && settings_.track_unmatched && w.short_cells_key == short_key &&
+                           w.short_cells.size() == static_cast<size_t>(n_cells);
+  w.corners.clear();
+  w.candidates.clear();
+  w.cell_count.assign(n_cells, 0);
+  auto addCorners = [&](size_t from, int cx0, int cx1, int cy) {
+    for (size_t k = from; k < w.corners.size(); ++k) {
+      const cv::Point3i& corner = w.corners[k];
+      if (!inside(corner.x, corner.y)) continue;
+      const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
+      const int cell = cellOf(key);
+      if (cell / cols != cy || cell % cols < cx0 || cell % cols > cx1) continue;  // a neighbour's, in the margin
+      w.candidates.push_back(key);
+      ++w.cell_count[cell];
+    }
+  };
+  if (!guess_short) {
+    // The package's FAST detector: cv::FAST's corners and scores on the same area, in less time.
+    fast_detector::detect(gray, fast_area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
+    for (const cv::Point3i& corner : w.corners) {
+      if (!inside(corner.x, corner.y)) continue;
+      const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
+      w.candidates.push_back(key);
+      ++w.cell_count[cellOf(key)];
+    }
+  } else {
+    // Runs of cells guessed full, one grid row at a time.
+    for (int cy = 0; cy < rows; ++cy) {
+      for (int cx = 0; cx < cols;) {
+        if (w.short_cells[cy * cols + cx] && fastFits(searchArea(cx, cx, cy, whole_image))) {
+          ++cx;
+          continue;
+        }
+        int end = cx;
+        while (end + 1 < cols &&
+               !(w.short_cells[cy * cols + end + 1] && fastFits(searchArea(end + 1, end + 1, cy, whole_image)))) {
+          ++end;
+        }
+        const cv::Rect area = searchArea(cx, end, cy, fast_area);
+        if (fastFits(area)) {
+          const size_t from = w.corners.size();
+          fast_detector::detect(gray, area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
+          addCorners(from, cx, end, cy);
+        }
+        cx = end + 1;
+      }
+    }
+  }
+
+  if (adaptive && (w.candidates.size() < budget || settings_.track_unmatched)) {
     // The short cells' strong corners are replaced by everything found at the floor (a cell too
     // small for FAST keeps what it has).
     w.redetect.assign(n_cells, 0);
     for (int c = 0; c < n_cells; ++c) {
-      const cv::Rect area = searchArea(c);
-      w.redetect[c] = w.cell_count[c] < per_cell && area.width >= 2 * kFastRadius + 1 &&
-                      area.height >= 2 * kFastRadius + 1;
+      w.redetect[c] = w.cell_count[c] < per_cell && fastFits(searchArea(c % cols, c % cols, c / cols, whole_image));
     }
     w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
                                       [&](uint64_t key) { return w.redetect[cellOf(key)] != 0; }),
                        w.candidates.end());
     for (int cell = 0; cell < n_cells; ++cell) {
       if (!w.redetect[cell]) continue;
-      const cv::Rect area = searchArea(cell);
       w.corners.clear();
-      fast_detector::detect(gray, area, settings_.min_fast_threshold, &w.fast_scratch, &w.corners);
+      fast_detector::detect(gray, searchArea(cell % cols, cell % cols, cell / cols, whole_image),
+                            settings_.min_fast_threshold, &w.fast_scratch, &w.corners);
+      const size_t first = w.candidates.size();
+      int strong = 0;
       for (const cv::Point3i& corner : w.corners) {
         if (!inside(corner.x, corner.y)) continue;
         const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
-        if (cellOf(key) == cell) w.candidates.push_back(key);
+        if (cellOf(key) != cell) continue;
+        w.candidates.push_back(key);
+        strong += corner.z >= settings_.fast_threshold;
+      }
+      w.cell_count[cell] = strong;
+      if (strong >= per_cell) {
+        // A cell guessed short that holds its share: its strong corners only.
+        w.candidates.erase(std::remove_if(w.candidates.begin() + static_cast<std::ptrdiff_t>(first),
+                                          w.candidates.end(),
+                                          [&](uint64_t key) {
+                                            return static_cast<int>(key >> 32) < settings_.fast_threshold;
+                                          }),
+                           w.candidates.end());
       }
     }
+  }
+  if (adaptive && settings_.track_unmatched) {
+    w.short_cells.resize(n_cells);
+    for (int c = 0; c < n_cells; ++c) w.short_cells[c] = w.cell_count[c] < per_cell;
+    w.short_cells_key = short_key;
+  } else {
+    w.short_cells.clear();
   }
 
   // Bucketing: an equal share per cell first, so texture-rich regions cannot take the whole
