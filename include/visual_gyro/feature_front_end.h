@@ -206,6 +206,8 @@ class FeatureFrontEnd {
     std::array<int, 7> short_cells_key{};
     cv::Mat smoothed;
     std::vector<uint16_t> smoothing;  // the Gaussian's fixed-point rows
+    // Describing: each kept keypoint's row, and the keypoints in row order (by row starts).
+    std::vector<int> describe_rows, describe_row_start, describe_order;
     // OpenCV's fixed-point Gaussian weights (centre first) for gaussian_sigma, and whether the
     // package's filter reproduces cv::GaussianBlur with them (checked once per sigma).
     std::array<uint16_t, 7> gaussian_weights{};

@@ -527,7 +527,8 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
   }
 
   features->keypoints.reserve(keypoints.size());
-  features->descriptors.reserve(keypoints.size());
+  Workspace& w = work_;
+  w.describe_rows.clear();
   for (const cv::Point2f& kp : keypoints) {
     if (!std::isfinite(kp.x) || !std::isfinite(kp.y)) continue;
     const long x = std::lround(kp.x), y = std::lround(kp.y);
@@ -535,13 +536,27 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
         y > height - 1 - kBriefHalfPatch) {
       continue;
     }
-    const uint8_t* centre = smoothed.ptr<uint8_t>(static_cast<int>(y)) + x;
     features->keypoints.push_back(kp);
+    w.describe_rows.push_back(static_cast<int>(y));
+  }
+  // The descriptors are computed in image-row order (a counting sort of the keypoints by row) and
+  // stored in the keypoints' order: consecutive keypoints then read patches whose rows are still
+  // in cache, which takes about a fifth less time than the strength order.
+  const size_t n = features->keypoints.size();
+  features->descriptors.resize(n);
+  w.describe_row_start.assign(static_cast<size_t>(height) + 1, 0);
+  for (const int y : w.describe_rows) ++w.describe_row_start[y + 1];
+  for (int y = 0; y < height; ++y) w.describe_row_start[y + 1] += w.describe_row_start[y];
+  w.describe_order.resize(n);
+  for (size_t k = 0; k < n; ++k) w.describe_order[w.describe_row_start[w.describe_rows[k]]++] = static_cast<int>(k);
+  for (const int k : w.describe_order) {
+    const long x = std::lround(features->keypoints[k].x), y = w.describe_rows[k];
+    const uint8_t* centre = smoothed.ptr<uint8_t>(static_cast<int>(y)) + x;
     // The gather kernel reads each pixel as a 32-bit word: the three bytes after the last pixel
     // the patch reaches must lie inside the image's memory, which holds unless the patch ends
     // within three bytes of the end of the image's last row.
     if (use_gather && (y + kBriefHalfPatch < height - 1 || x + kBriefHalfPatch + 3 < width)) {
-      features->descriptors.push_back(gather_tests(centre, off1.data(), off2.data()));
+      features->descriptors[k] = gather_tests(centre, off1.data(), off2.data());
       continue;
     }
     // The pixels of each test gathered first, then compared 16 at a time.
@@ -550,7 +565,7 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
       first[i] = centre[off1[i]];
       second[i] = centre[off2[i]];
     }
-    features->descriptors.push_back(compareTests(first.data(), second.data()));
+    features->descriptors[k] = compareTests(first.data(), second.data());
   }
 }
 
