@@ -206,8 +206,9 @@ class FeatureFrontEnd {
     std::array<int, 7> short_cells_key{};
     cv::Mat smoothed;
     std::vector<uint16_t> smoothing;  // the Gaussian's fixed-point rows
-    // Describing: each kept keypoint's row, and the keypoints in row order (by row starts).
-    std::vector<int> describe_rows, describe_row_start, describe_order;
+    // Describing: each kept keypoint's row. Describing, refining and tracking visit points in
+    // image-row order: the row starts and that order.
+    std::vector<int> describe_rows, row_start, row_order;
     // OpenCV's fixed-point Gaussian weights (centre first) for gaussian_sigma, and whether the
     // package's filter reproduces cv::GaussianBlur with them (checked once per sigma).
     std::array<uint16_t, 7> gaussian_weights{};
@@ -223,6 +224,8 @@ class FeatureFrontEnd {
     // of their previous keypoint (cell starts), the median displacement per cell, median scratch.
     std::vector<uint8_t> matched;
     std::vector<int> track_cell_start, track_cell_cursor;
+    std::vector<uint8_t> track_found;           // tracked, per previous keypoint
+    std::vector<cv::Point2f> track_positions;  // where, when tracked
     std::vector<cv::Point2f> track_moves, cell_moves;
     std::vector<double> median_x, median_y;
   };

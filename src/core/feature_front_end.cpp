@@ -201,6 +201,27 @@ GatherTestsFn selectGatherTests() {
 
 }  // namespace
 
+namespace {
+
+/// The indices 0 .. n - 1 ordered by the image row rowOf(k) returns (a stable counting sort; rows
+/// outside 0 .. height - 1 count as the nearest one): patches read in that order share the rows
+/// already in cache.
+template <typename RowOf>
+void orderByRow(size_t n, int height, RowOf rowOf, std::vector<int>* row_start, std::vector<int>* order) {
+  row_start->assign(static_cast<size_t>(height) + 1, 0);
+  for (size_t k = 0; k < n; ++k) ++(*row_start)[std::clamp(rowOf(k), 0, height - 1) + 1];
+  for (int y = 0; y < height; ++y) (*row_start)[y + 1] += (*row_start)[y];
+  order->resize(n);
+  for (size_t k = 0; k < n; ++k) (*order)[(*row_start)[std::clamp(rowOf(k), 0, height - 1)]++] = static_cast<int>(k);
+}
+
+/// The whole-pixel row of `p` for orderByRow (0 when it is not finite).
+int pixelRow(const cv::Point2f& p) {
+  return std::isfinite(p.y) && std::abs(p.y) < 1e9f ? static_cast<int>(std::lround(p.y)) : 0;
+}
+
+}  // namespace
+
 const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
   using S = FrontEndSettings;
   static const std::vector<SettingField<S>> fields = {
@@ -544,12 +565,8 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
   // in cache, which takes about a fifth less time than the strength order.
   const size_t n = features->keypoints.size();
   features->descriptors.resize(n);
-  w.describe_row_start.assign(static_cast<size_t>(height) + 1, 0);
-  for (const int y : w.describe_rows) ++w.describe_row_start[y + 1];
-  for (int y = 0; y < height; ++y) w.describe_row_start[y + 1] += w.describe_row_start[y];
-  w.describe_order.resize(n);
-  for (size_t k = 0; k < n; ++k) w.describe_order[w.describe_row_start[w.describe_rows[k]]++] = static_cast<int>(k);
-  for (const int k : w.describe_order) {
+  orderByRow(n, height, [&](size_t k) { return w.describe_rows[k]; }, &w.row_start, &w.row_order);
+  for (const int k : w.row_order) {
     const long x = std::lround(features->keypoints[k].x), y = w.describe_rows[k];
     const uint8_t* centre = smoothed.ptr<uint8_t>(static_cast<int>(y)) + x;
     // The gather kernel reads each pixel as a 32-bit word: the three bytes after the last pixel
@@ -754,7 +771,12 @@ void FeatureFrontEnd::refineMatches(const cv::Mat& previous_gray, const cv::Mat&
   const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
   const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
   patch_alignment::PatchTemplate patch;
-  for (FeatureMatch& m : *matches) {
+  Workspace& w = work_;
+  orderByRow(matches->size(), previous_gray.rows,
+             [&](size_t k) { return pixelRow(previous.keypoints[(*matches)[k].previous]); }, &w.row_start,
+             &w.row_order);
+  for (const int k : w.row_order) {
+    FeatureMatch& m = (*matches)[k];
     const cv::Point2f p = previous.keypoints[m.previous], q = current.keypoints[m.current];
     cv::Point2d aligned;
     if (alignCorner(previous_gray, current_gray, p, static_cast<int>(std::lround(q.x)),
@@ -859,7 +881,12 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
   const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
   const patch_alignment::MomentsKernel moments = patch_alignment::momentsKernel();
   patch_alignment::PatchTemplate patch;
-  for (size_t i = 0; i < n_previous; ++i) {
+  // Tracked in row order (cached rows), listed in corner order.
+  w.track_found.assign(n_previous, 0);
+  w.track_positions.resize(n_previous);
+  orderByRow(n_previous, previous_gray.rows, [&](size_t k) { return pixelRow(previous.keypoints[k]); },
+             &w.row_start, &w.row_order);
+  for (const int i : w.row_order) {
     if (w.matched[i]) continue;
     const cv::Point2f p = previous.keypoints[i];
     const cv::Point2f predicted = p + w.cell_moves[cellOf(p)];
@@ -874,7 +901,11 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
                          moments) < settings_.min_track_correlation) {
       continue;
     }
-    tracks->push_back({static_cast<int>(i), cv::Point2f(static_cast<float>(aligned.x), static_cast<float>(aligned.y))});
+    w.track_found[i] = 1;
+    w.track_positions[i] = cv::Point2f(static_cast<float>(aligned.x), static_cast<float>(aligned.y));
+  }
+  for (size_t i = 0; i < n_previous; ++i) {
+    if (w.track_found[i]) tracks->push_back({static_cast<int>(i), w.track_positions[i]});
   }
 }
 
