@@ -628,14 +628,30 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   order.resize(count);
   const int k = std::min(4, static_cast<int>(std::sqrt(static_cast<double>(count) / kMinJackknifeGroupSize)));
   if (k < 2) return out;
-  // k strips of equal count across x, each cut into k groups of equal count along y.
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b]; });
+  // k strips of equal count across x, each cut into k groups of equal count along y. Only which
+  // range of ranks a match falls in matters, so successive partitions (linear time) serve where
+  // sorts did; ties are broken by index, so the groups are fully determined.
+  const auto by_x = [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b] || (m.px[a] == m.px[b] && a < b); };
+  const auto by_y = [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b] || (m.py[a] == m.py[b] && a < b); };
+  // Strip s holds the ranks from floor(s count / k); within a strip of `length`, rank j belongs to
+  // group floor(j k / length), so group p starts at rank ceil(p length / k).
+  const auto stripStart = [k, count](int strip) { return strip * count / k; };
+  const auto partStart = [k](size_t length, int part) { return (part * length + k - 1) / k; };
+  for (int strip = 1; strip < k; ++strip) {
+    std::nth_element(order.begin() + stripStart(strip - 1), order.begin() + stripStart(strip), order.end(), by_x);
+  }
   s.group.assign(n, -1);
   for (int strip = 0; strip < k; ++strip) {
-    const auto begin = order.begin() + count * strip / k, end = order.begin() + count * (strip + 1) / k;
-    std::sort(begin, end, [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b]; });
+    const auto begin = order.begin() + stripStart(strip), end = order.begin() + stripStart(strip + 1);
     const size_t length = end - begin;
-    for (size_t j = 0; j < length; ++j) s.group[begin[j]] = strip * k + static_cast<int>(j * k / length);
+    for (int part = 1; part < k; ++part) {
+      std::nth_element(begin + partStart(length, part - 1), begin + partStart(length, part), end, by_y);
+    }
+    for (int part = 0; part < k; ++part) {
+      for (auto it = begin + partStart(length, part); it != begin + partStart(length, part + 1); ++it) {
+        s.group[*it] = strip * k + part;
+      }
+    }
   }
   const int groups = k * k;
   constexpr int kMaxGroups = 16;
