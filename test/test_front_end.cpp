@@ -617,10 +617,10 @@ TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {
 // bit: the descriptors, and so every figure, are the same as with OpenCV's filter.
 TEST(FixedPointGaussian, SameAsOpenCvBitForBit) {
   namespace fpg = fixed_point_gaussian;
-  // Every filter this CPU runs (the portable one, and the AVX2 one where the CPU has it), not only
-  // the one selectFilter() picks. Sigmas whose OpenCV kernel has kTaps taps; image sizes with odd
-  // widths, a KITTI frame, and images smaller than the kernel (reflection on both sides) or
-  // narrower than a vector.
+  // Every filter this CPU runs (the portable one, and the AVX2 and AVX-512 ones where the CPU has
+  // them), not only the one selectFilter() picks. Sigmas whose OpenCV kernel has kTaps taps; image
+  // sizes with odd widths, a KITTI frame, and images smaller than the kernel (reflection on both
+  // sides) or narrower than a vector.
   for (const auto& [name, filter] : fpg::availableFilters()) {
     for (const double sigma : {1.7, 1.85, 2.0}) {
       fpg::Weights weights{};

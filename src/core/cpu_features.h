@@ -39,5 +39,16 @@ inline bool hasAvx512Popcnt() {
 #endif
 }
 
+/// True when the CPU has AVX-512 F and BW (512-bit integer lanes of bytes and words), and the
+/// operating system saves the 512-bit registers (x86-64 only; false elsewhere).
+inline bool hasAvx512Bw() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw");
+#else
+  return false;
+#endif
+}
+
 }  // namespace cpu_features
 }  // namespace visual_gyro

@@ -23,10 +23,12 @@ using Weights = std::array<uint16_t, kTaps / 2 + 1>;
 /// BORDER_REFLECT_101; `buffer` holds bufferSize(src.cols, src.rows) values.
 using Filter = void (*)(const cv::Mat& src, const Weights& weights, cv::Mat* dst, uint16_t* buffer);
 
-/// The fastest filter this CPU runs (AVX2 when it reports it, else the baseline instruction set).
+/// The fastest filter this CPU runs (AVX-512 BW, else AVX2 when it reports them, else the baseline
+/// instruction set).
 Filter selectFilter();
 
-/// Every filter this CPU runs, by name ("generic", and "avx2" when the CPU reports it), so tests can
+/// Every filter this CPU runs, by name ("generic", and "avx2" and "avx512" when the CPU reports
+/// them), slowest first, so tests can
 /// check each one and not only the one selectFilter() picks.
 std::vector<std::pair<std::string, Filter>> availableFilters();
 
