@@ -103,9 +103,10 @@ if [[ -f ${OUT}/rendered/forward/poses.txt ]]; then
   done
 fi
 
-# 4b. Front ends on the same frames, vote only: the native front end with guided matching (integer
-#     and sub-pixel positions, and sub-pixel positions with tracking) and with global matching, the fixed-threshold global front end with integer positions it replaced
-#     (min_fast_threshold = fast_threshold, subpixel_refinement = false),
+# 4b. Front ends on the same frames, vote only: the native front end with guided matching (the
+#     defaults, sub-pixel positions with tracking; sub-pixel positions alone; integer positions) and
+#     with global matching, the fixed-threshold global front end with integer positions it replaced
+#     (min_fast_threshold = fast_threshold, subpixel_refinement = track_unmatched = false),
 #     OpenCV ORB + brute force and KLT; on the shared sequences and on the rendered dim room with
 #     3 px motion blur and JPEG 75 (also evaluated with every method).
 dim_dir="${OUT}/rendered/dim_blur3_jpeg75"
@@ -126,12 +127,12 @@ for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blu
   # The native front end's times decide goals (guided against global, the whole pipeline): best
   # of three runs each, as one run on a shared 2-core machine can be slowed by a third.
   REPEAT=3 run_eval front_end "${name}:guided" 0 "${folder}" --method vote
-  REPEAT=3 run_eval front_end "${name}:subpixel" 0 "${folder}" --method vote --set subpixel_refinement=true
-  REPEAT=3 run_eval front_end "${name}:tracking" 0 "${folder}" --method vote --set subpixel_refinement=true \
-    --set track_unmatched=true
+  REPEAT=3 run_eval front_end "${name}:subpixel" 0 "${folder}" --method vote --set track_unmatched=false
+  REPEAT=3 run_eval front_end "${name}:integer" 0 "${folder}" --method vote --set subpixel_refinement=false \
+    --set track_unmatched=false
   REPEAT=3 run_eval front_end "${name}:global" 0 "${folder}" --method vote --set matching=global
   REPEAT=3 run_eval front_end "${name}:fixed_global" 0 "${folder}" --method vote --set matching=global \
-    --set min_fast_threshold=20 --set subpixel_refinement=false
+    --set min_fast_threshold=20 --set subpixel_refinement=false --set track_unmatched=false
   run_eval front_end "${name}:orb" 0 "${folder}" --method vote --front-end orb
   run_eval front_end "${name}:klt" 0 "${folder}" --method vote --front-end klt
 done

@@ -88,9 +88,9 @@ def method_table(runs, methods, cell):
     return out
 
 
-FRONT_END_VARIANTS = [("guided", "native, guided matching"),
-                      ("subpixel", "native, guided matching, sub-pixel positions"),
-                      ("tracking", "native, guided matching, sub-pixel positions, tracking"),
+FRONT_END_VARIANTS = [("guided", "native, guided matching, sub-pixel positions, tracking (defaults)"),
+                      ("subpixel", "native, guided matching, sub-pixel positions, no tracking"),
+                      ("integer", "native, guided matching, integer positions, no tracking"),
                       ("global", "native, global matching"),
                       ("fixed_global", "fixed FAST threshold, global matching (before)"),
                       ("orb", "OpenCV ORB + brute force"), ("klt", "goodFeaturesToTrack + pyramidal LK")]
@@ -145,11 +145,12 @@ def front_end_table(rows):
             parts.append(f"matches {fmt(g.get('matches_mean'), 0)} (before: "
                          f"{fmt(variants['fixed_global'].get('matches_mean'), 0)})")
         whole = f"; whole pipeline {fmt(num(g.get('ms_total')), 2)} ms"
-        if "subpixel" in variants:
-            whole += f" ({fmt(num(variants['subpixel'].get('ms_total')), 2)} ms with sub-pixel positions"
-            if "tracking" in variants:
-                whole += f", {fmt(num(variants['tracking'].get('ms_total')), 2)} ms with tracking as well"
-            whole += ")"
+        others = [f"{fmt(num(variants[key].get('ms_total')), 2)} ms {what}"
+                  for key, what in (("subpixel", "without tracking"),
+                                    ("integer", "with integer positions and no tracking"))
+                  if key in variants]
+        if others:
+            whole += " (" + ", ".join(others) + ")"
         goals.append(f"- {seq}: " + "; ".join(parts) + whole)
     return out + ["", "Measured ratios (same run):\n"] + goals
 

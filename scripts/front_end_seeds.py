@@ -19,9 +19,9 @@ import sys
 import tempfile
 
 CONFIGS = [
-    ("native, integer positions", ["--set", "subpixel_refinement=false"]),
-    ("native, sub-pixel positions", ["--set", "subpixel_refinement=true"]),
-    ("native, sub-pixel positions and tracking",
+    ("native, integer positions", ["--set", "subpixel_refinement=false", "--set", "track_unmatched=false"]),
+    ("native, sub-pixel positions", ["--set", "subpixel_refinement=true", "--set", "track_unmatched=false"]),
+    ("native, sub-pixel positions and tracking (defaults)",
      ["--set", "subpixel_refinement=true", "--set", "track_unmatched=true"]),
     ("klt", ["--front-end", "klt"]),
 ]

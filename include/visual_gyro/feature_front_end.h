@@ -52,12 +52,12 @@ struct FrontEndSettings {
   int guided_min_matches = 30;
   /// Sub-pixel match positions: each match's current corner is moved by a translational
   /// Lucas-Kanade alignment of the previous corner's patch (refineMatches()). Off: integer
-  /// FAST positions. Off by default: the estimator's covariance model is calibrated on integer
-  /// positions (see the README's front-end section).
-  bool subpixel_refinement = false;
+  /// FAST positions (cheaper, less accurate on blurred images; the estimator then uses its
+  /// covariance model for integer positions).
+  bool subpixel_refinement = true;
   /// Tracking of unmatched corners: each previous corner that found no descriptor match is looked
   /// for by patch alignment where its cell's matches say it moved (trackUnmatched()).
-  bool track_unmatched = false;
+  bool track_unmatched = true;
   /// A tracked corner is kept when the zero-mean normalised cross-correlation of its previous and
   /// current 11 x 11 patches reaches this.
   double min_track_correlation = 0.8;
