@@ -61,6 +61,15 @@ __attribute__((always_inline)) inline void horizontalPass(const cv::Mat& src, co
   }
 }
 
+/// The kTaps rows of horizontal values that output row y's column pass reads (reflected at the
+/// image's top and bottom).
+__attribute__((always_inline)) inline void tapRows(const uint16_t* horizontal, int y, int rows, int cols,
+                                                   const uint16_t* taps[kTaps]) {
+  for (int k = -kHalfTaps; k <= kHalfTaps; ++k) {
+    taps[kHalfTaps + k] = horizontal + static_cast<size_t>(reflect101(y + k, rows)) * cols;
+  }
+}
+
 /// One output pixel of the column pass from unbiased horizontal values, exactly as OpenCV
 /// computes it: (sum w H + 2^15) >> 16 in 32 bits.
 __attribute__((always_inline)) inline uint8_t columnPixel(const uint16_t* const* taps, const Weights& w,
@@ -140,9 +149,7 @@ __attribute__((target("avx2"))) void filterAvx2(const cv::Mat& src, const Weight
   const __m256i rounding = _mm256_set1_epi32((1 << 23) + (1 << 15));
   const uint16_t* taps[kTaps];
   for (int y = 0; y < rows; ++y) {
-    for (int k = -kHalfTaps; k <= kHalfTaps; ++k) {
-      taps[kHalfTaps + k] = horizontal + static_cast<size_t>(reflect101(y + k, rows)) * cols;
-    }
+    tapRows(horizontal, y, rows, cols, taps);
     uint8_t* out = dst->ptr<uint8_t>(y);
     int x = 0;
     for (; x + 16 <= cols; x += 16) {
@@ -188,9 +195,7 @@ __attribute__((target("avx2,avx512f,avx512bw"))) void filterAvx512(const cv::Mat
   const __m512i lane_bytes = _mm512_setr_epi64(0, 2, 4, 6, 0, 2, 4, 6);
   const uint16_t* taps[kTaps];
   for (int y = 0; y < rows; ++y) {
-    for (int k = -kHalfTaps; k <= kHalfTaps; ++k) {
-      taps[kHalfTaps + k] = horizontal + static_cast<size_t>(reflect101(y + k, rows)) * cols;
-    }
+    tapRows(horizontal, y, rows, cols, taps);
     uint8_t* out = dst->ptr<uint8_t>(y);
     int x = 0;
     for (; x + 32 <= cols; x += 32) {

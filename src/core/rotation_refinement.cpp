@@ -270,6 +270,16 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
+// Match i's bearings (b_prev, then b_cur) at the gathered place `at`.
+inline void putGathered(const FrameMatches& m, size_t i, size_t at, double* const out[6]) {
+  out[0][at] = m.px[i];
+  out[1][at] = m.py[i];
+  out[2][at] = m.pz[i];
+  out[3][at] = m.cx[i];
+  out[4][at] = m.cy[i];
+  out[5][at] = m.cz[i];
+}
+
 // Zero bearings from the `count`-th gathered place to the end of its chunk.
 void padGathered(double* const out[6], size_t count, bool interleaved) {
   const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
@@ -297,12 +307,7 @@ size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, s
   size_t count = 0;
   for (size_t i = 0; i < n; i += stride) {
     const size_t at = passes::gatheredPosition(count, interleaved);
-    out[0][at] = m.px[i];
-    out[1][at] = m.py[i];
-    out[2][at] = m.pz[i];
-    out[3][at] = m.cx[i];
-    out[4][at] = m.cy[i];
-    out[5][at] = m.cz[i];
+    putGathered(m, i, at, out);
     count += keep == nullptr || keep[i] != 0.0;
   }
   padGathered(out, count, interleaved);
@@ -320,12 +325,7 @@ size_t gatherListed(const FrameMatches& m, const uint32_t* indices, size_t count
   }
   for (size_t k = 0; k < count; ++k) {
     const size_t at = passes::gatheredPosition(k, interleaved), i = indices[k];
-    out[0][at] = m.px[i];
-    out[1][at] = m.py[i];
-    out[2][at] = m.pz[i];
-    out[3][at] = m.cx[i];
-    out[4][at] = m.cy[i];
-    out[5][at] = m.cz[i];
+    putGathered(m, i, at, out);
   }
   padGathered(out, count, interleaved);
   return count;
