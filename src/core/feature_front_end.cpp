@@ -366,44 +366,46 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   w.corners.clear();
   w.candidates.clear();
   w.cell_count.assign(n_cells, 0);
-  auto addCorners = [&](size_t from, int cx0, int cx1, int cy) {
+  // Appends the corners from w.corners[from] on that keep the border distance and lie in grid row
+  // cy's cells cx0 .. cx1 (every cell: cy < 0) to the candidates, counted per cell; returns how
+  // many of them reach fast_threshold.
+  auto addCorners = [&](size_t from, int cy, int cx0, int cx1) {
+    int strong = 0;
     for (size_t k = from; k < w.corners.size(); ++k) {
       const cv::Point3i& corner = w.corners[k];
       if (!inside(corner.x, corner.y)) continue;
       const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
       const int cell = cellOf(key);
-      if (cell / cols != cy || cell % cols < cx0 || cell % cols > cx1) continue;  // a neighbour's, in the margin
+      if (cy >= 0 && (cell / cols != cy || cell % cols < cx0 || cell % cols > cx1)) continue;  // in the margin
       w.candidates.push_back(key);
       ++w.cell_count[cell];
+      strong += corner.z >= settings_.fast_threshold;
     }
+    return strong;
   };
+  // Whether FAST can run on cell c's own search area (a cell too small for it keeps what the
+  // strong pass found).
+  auto cellFits = [&](int c) { return fastFits(searchArea(c % cols, c % cols, c / cols, whole_image)); };
   if (!guess_short) {
     // The package's FAST detector: cv::FAST's corners and scores on the same area, in less time.
     fast_detector::detect(gray, fast_area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
-    for (const cv::Point3i& corner : w.corners) {
-      if (!inside(corner.x, corner.y)) continue;
-      const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
-      w.candidates.push_back(key);
-      ++w.cell_count[cellOf(key)];
-    }
+    addCorners(0, -1, 0, cols - 1);
   } else {
     // Runs of cells guessed full, one grid row at a time.
+    auto skipped = [&](int c) { return w.short_cells[c] && cellFits(c); };
     for (int cy = 0; cy < rows; ++cy) {
       for (int cx = 0; cx < cols;) {
-        if (w.short_cells[cy * cols + cx] && fastFits(searchArea(cx, cx, cy, whole_image))) {
+        if (skipped(cy * cols + cx)) {
           ++cx;
           continue;
         }
         int end = cx;
-        while (end + 1 < cols &&
-               !(w.short_cells[cy * cols + end + 1] && fastFits(searchArea(end + 1, end + 1, cy, whole_image)))) {
-          ++end;
-        }
+        while (end + 1 < cols && !skipped(cy * cols + end + 1)) ++end;
         const cv::Rect area = searchArea(cx, end, cy, fast_area);
         if (fastFits(area)) {
           const size_t from = w.corners.size();
           fast_detector::detect(gray, area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
-          addCorners(from, cx, end, cy);
+          addCorners(from, cy, cx, end);
         }
         cx = end + 1;
       }
@@ -411,12 +413,9 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   }
 
   if (adaptive && (w.candidates.size() < budget || settings_.track_unmatched)) {
-    // The short cells' strong corners are replaced by everything found at the floor (a cell too
-    // small for FAST keeps what it has).
+    // The short cells' strong corners are replaced by everything found at the floor.
     w.redetect.assign(n_cells, 0);
-    for (int c = 0; c < n_cells; ++c) {
-      w.redetect[c] = w.cell_count[c] < per_cell && fastFits(searchArea(c % cols, c % cols, c / cols, whole_image));
-    }
+    for (int c = 0; c < n_cells; ++c) w.redetect[c] = w.cell_count[c] < per_cell && cellFits(c);
     w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
                                       [&](uint64_t key) { return w.redetect[cellOf(key)] != 0; }),
                        w.candidates.end());
@@ -426,14 +425,7 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
       fast_detector::detect(gray, searchArea(cell % cols, cell % cols, cell / cols, whole_image),
                             settings_.min_fast_threshold, &w.fast_scratch, &w.corners);
       const size_t first = w.candidates.size();
-      int strong = 0;
-      for (const cv::Point3i& corner : w.corners) {
-        if (!inside(corner.x, corner.y)) continue;
-        const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
-        if (cellOf(key) != cell) continue;
-        w.candidates.push_back(key);
-        strong += corner.z >= settings_.fast_threshold;
-      }
+      const int strong = addCorners(0, cell / cols, cell % cols, cell % cols);
       w.cell_count[cell] = strong;
       if (strong >= per_cell) {
         // A cell guessed short that holds its share: its strong corners only.
