@@ -50,5 +50,17 @@ inline bool hasAvx512Bw() {
 #endif
 }
 
+/// True when the CPU has AVX-512 F, BW and VBMI (byte permutes across a 512-bit register), and
+/// the operating system saves the 512-bit registers (x86-64 only; false elsewhere).
+inline bool hasAvx512Vbmi() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+         __builtin_cpu_supports("avx512vbmi");
+#else
+  return false;
+#endif
+}
+
 }  // namespace cpu_features
 }  // namespace visual_gyro

@@ -2,6 +2,7 @@
 // (the search kernels are in hamming_kernels.cpp).
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/random.h"
+#include "brief_kernels.h"
 #include "cpu_features.h"
 #include "fast_detector.h"
 #include "fixed_point_gaussian.h"
@@ -14,12 +15,6 @@
 #include <limits>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#endif
 #include <sstream>
 #include <stdexcept>
 
@@ -127,76 +122,6 @@ void sortKeysDescending(std::vector<uint64_t>* keys, std::vector<uint64_t>* scra
   }
   // An odd number of passes leaves the result in the scratch buffer.
   keys->swap(*scratch);
-}
-
-
-/// BRIEF bits from the gathered test pixels: bit i = first[i] < second[i] (both 16-byte aligned).
-BriefDescriptor compareTests(const uint8_t* first, const uint8_t* second) {
-  BriefDescriptor descriptor{};
-#if defined(__SSE2__)
-  // Baseline x86-64: a byte compare and a move-mask give 16 bits at once. The compare is signed,
-  // so both sides are shifted by 128 first (an unsigned order then).
-  const __m128i bias = _mm_set1_epi8(static_cast<char>(0x80));
-  for (int word = 0; word < 4; ++word) {
-    uint64_t bits = 0;
-    for (int part = 0; part < 4; ++part) {
-      const int i = word * 64 + part * 16;
-      const __m128i a = _mm_xor_si128(_mm_load_si128(reinterpret_cast<const __m128i*>(first + i)), bias);
-      const __m128i b = _mm_xor_si128(_mm_load_si128(reinterpret_cast<const __m128i*>(second + i)), bias);
-      const auto mask = static_cast<uint32_t>(_mm_movemask_epi8(_mm_cmplt_epi8(a, b)));
-      bits |= static_cast<uint64_t>(mask) << (part * 16);
-    }
-    descriptor[word] = bits;
-  }
-#else
-  for (int word = 0; word < 4; ++word) {
-    uint64_t bits = 0;
-    for (int b = 0; b < 64; ++b) {
-      bits |= static_cast<uint64_t>(first[word * 64 + b] < second[word * 64 + b]) << b;
-    }
-    descriptor[word] = bits;
-  }
-#endif
-  return descriptor;
-}
-
-/// BRIEF of one keypoint from byte offsets (relative to its centre pixel) of each test's two
-/// pixels; nullptr where the CPU has no kernel of its own (describe() then gathers the pixels into
-/// arrays and uses compareTests).
-using GatherTestsFn = BriefDescriptor (*)(const uint8_t* centre, const int32_t* first, const int32_t* second);
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// Eight tests per step: the hardware gathers read the 16 pixels as 32-bit words (the pixel in the
-// low byte; the caller guarantees the three bytes after each are readable), a 32-bit compare and a
-// move-mask give the 8 bits. About twice as fast as gathering the pixels with scalar loads into
-// arrays first (0.15 against 0.29 ms for 1 500 keypoints on a KITTI frame).
-__attribute__((target("avx2"))) BriefDescriptor gatherTestsAvx2(const uint8_t* centre, const int32_t* first,
-                                                                  const int32_t* second) {
-  BriefDescriptor descriptor{};
-  const __m256i low_byte = _mm256_set1_epi32(0xFF);
-  const int* base = reinterpret_cast<const int*>(centre);
-  for (int word = 0; word < 4; ++word) {
-    uint64_t bits = 0;
-    for (int part = 0; part < 8; ++part) {
-      const int i = word * 64 + part * 8;
-      const __m256i at_first = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(first + i));
-      const __m256i at_second = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(second + i));
-      const __m256i a = _mm256_and_si256(_mm256_i32gather_epi32(base, at_first, 1), low_byte);
-      const __m256i b = _mm256_and_si256(_mm256_i32gather_epi32(base, at_second, 1), low_byte);
-      const auto mask = static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b, a))));
-      bits |= static_cast<uint64_t>(mask) << (part * 8);
-    }
-    descriptor[word] = bits;
-  }
-  return descriptor;
-}
-#endif
-
-GatherTestsFn selectGatherTests() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (cpu_features::hasAvx2()) return gatherTestsAvx2;
-#endif
-  return nullptr;
 }
 
 }  // namespace
@@ -525,19 +450,13 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
     smoothed = gray;
   }
 
-  // Pattern offsets as byte offsets in the smoothed image, computed once per call.
-  const auto& pattern = briefPattern();
+  // Pattern offsets as byte offsets in the smoothed image, computed once per call. The offsets
+  // reach kBriefHalfPatch rows either way; a row step too large for 32-bit offsets (no real
+  // image) takes the portable kernel with 64-bit indexing.
   const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(smoothed.step[0]);
-  alignas(32) std::array<int32_t, 256> off1, off2;
-  // The offsets reach kBriefHalfPatch rows either way; a row step too large for 32-bit offsets
-  // (no real image) takes the portable path.
-  static const GatherTestsFn gather_tests = selectGatherTests();
-  const bool use_gather = gather_tests != nullptr &&
-                          step <= std::numeric_limits<int32_t>::max() / (2 * kBriefHalfPatch + 2);
-  for (int i = 0; i < 256; ++i) {
-    off1[i] = static_cast<int32_t>(pattern[i][1] * step + pattern[i][0]);
-    off2[i] = static_cast<int32_t>(pattern[i][3] * step + pattern[i][2]);
-  }
+  const bool offsets_fit = step <= std::numeric_limits<int32_t>::max() / (2 * kBriefHalfPatch + 2);
+  static const brief_kernels::TestKernel vector_tests = brief_kernels::selectKernel();
+  const brief_kernels::TestOffsets offsets = brief_kernels::testOffsets(offsets_fit ? step : 0);  // unused unless they fit
 
   features->keypoints.reserve(keypoints.size());
   Workspace& w = work_;
@@ -561,20 +480,21 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
   for (const int k : w.row_order) {
     const long x = std::lround(features->keypoints[k].x), y = w.describe_rows[k];
     const uint8_t* centre = smoothed.ptr<uint8_t>(static_cast<int>(y)) + x;
-    // The gather kernel reads each pixel as a 32-bit word: the three bytes after the last pixel
-    // the patch reaches must lie inside the image's memory, which holds unless the patch ends
-    // within three bytes of the end of the image's last row.
-    if (use_gather && (y + kBriefHalfPatch < height - 1 || x + kBriefHalfPatch + 3 < width)) {
-      features->descriptors[k] = gather_tests(centre, off1.data(), off2.data());
+    // A vector kernel may read a few bytes past a patch pixel: those must lie inside the image's
+    // memory, which holds unless the patch ends within that many bytes of the end of the image's
+    // last row.
+    if (offsets_fit && (y + kBriefHalfPatch < height - 1 || x + kBriefHalfPatch + brief_kernels::kBytesPastPatch < width)) {
+      features->descriptors[k] = vector_tests(centre, step, offsets);
       continue;
     }
-    // The pixels of each test gathered first, then compared 16 at a time.
-    alignas(16) std::array<uint8_t, 256> first, second;
+    BriefDescriptor descriptor{};
+    const auto& pattern = briefPattern();
     for (int i = 0; i < 256; ++i) {
-      first[i] = centre[off1[i]];
-      second[i] = centre[off2[i]];
+      const uint8_t a = centre[pattern[i][1] * step + pattern[i][0]];
+      const uint8_t b = centre[pattern[i][3] * step + pattern[i][2]];
+      descriptor[i / 64] |= static_cast<uint64_t>(a < b) << (i % 64);
     }
-    features->descriptors[k] = compareTests(first.data(), second.data());
+    features->descriptors[k] = descriptor;
   }
 }
 
