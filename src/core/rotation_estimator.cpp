@@ -2,12 +2,15 @@
 #include "visual_gyro/rotation_estimator.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <sstream>
-#include <string_view>
 #include <stdexcept>
+#include <string_view>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -29,6 +32,7 @@ constexpr double kRefineFraction = 0.6;
 constexpr int kMaxRefinedCandidates = 4;
 // Valley search: rotation steps [deg] about view x t, and the smallest |view x t| (sine of the
 // angle between the translation and the viewing direction) for which it runs.
+// Ascending, both signs, without 0 (the winner itself), which the search puts between the signs.
 constexpr double kValleySteps[] = {-3.0, -2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0, 3.0};
 constexpr double kMinValleyLateral = 0.3;
 // A general-motion winner whose refinement kept fewer inliers than this fraction of the best
@@ -570,8 +574,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // image alike, to first order; only the depth differences between the points tell them apart.
   // Candidates that start on the wrong side of that valley converge to its nearest local
   // minimum, a fraction of a degree to a few degrees from the right one, so the winner is
-  // re-verified at rotations stepped along the valley and the best step, when it explains more
-  // matches, is refined and competes. The valley is about view x t when the winner's translation
+  // re-verified at rotations stepped along the valley (and at the minimum of the parabola through
+  // the best step and its neighbours), and the best step, when it explains the matches more
+  // tightly, is refined and competes. The valley is about view x t when the winner's translation
   // is lateral; a winner whose refinement lost much of its verified support may sit in a wrong
   // basin whose translation says nothing of the true valley, so then both axes across the view
   // are searched. Wrong matches alone do not trigger that: verification does not count them either.
@@ -589,21 +594,54 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       axes.push_back(across);
       axes.push_back(view.cross(across));
     }
+    // Steps are ranked by their truncated cost, not by a count: along the valley the wrong rotation
+    // and the right one keep nearly every match within the gate, and only how tightly tells them
+    // apart.
     VerifiedRotation best_step;
+    double best_cost = 0.0;
     if (!axes.empty()) {
       best_step = verifyRotation(matches, refined.rotation, threshold, seed + 7);
+      best_cost = truncatedEpipolarCost(matches, refined.rotation, refined.translation, threshold);
       diagnostics.valley_searched = true;
     }
     bool stepped = false;
-    for (const Eigen::Vector3d& axis : axes) {
-      for (double step_deg : kValleySteps) {
-        const Eigen::Matrix3d stepped_rotation = so3Exp(step_deg * kDeg * axis) * refined.rotation;
-        const VerifiedRotation v = verifyRotation(matches, stepped_rotation, threshold, seed + 7);
-        if (v.inliers > best_step.inliers) {
-          best_step = v;
-          stepped = true;
-        }
+    // The cost of the winner turned by `step_deg` about `axis`, paired with its own translation
+    // (the step's verification finds one; else the winner's); the best so far is kept.
+    const double base_cost = best_cost;
+    const auto tryStep = [&](const Eigen::Vector3d& axis, double step_deg) {
+      const Eigen::Matrix3d stepped_rotation = so3Exp(step_deg * kDeg * axis) * refined.rotation;
+      const VerifiedRotation v = verifyRotation(matches, stepped_rotation, threshold, seed + 7);
+      const Eigen::Vector3d& translation = v.translation.isZero() ? refined.translation : v.translation;
+      const double cost = truncatedEpipolarCost(matches, stepped_rotation, translation, threshold);
+      if (cost < best_cost) {
+        best_step = v;
+        best_cost = cost;
+        stepped = true;
       }
+      return cost;
+    };
+    for (const Eigen::Vector3d& axis : axes) {
+      // The steps' costs, the winner's own (step 0) in order among them.
+      std::array<std::pair<double, double>, std::size(kValleySteps) + 1> costs;
+      size_t k = 0;
+      for (double step_deg : kValleySteps) {
+        if (k > 0 && costs[k - 1].first < 0.0 && step_deg > 0.0) costs[k++] = {0.0, base_cost};
+        costs[k++] = {step_deg, tryStep(axis, step_deg)};
+      }
+      // The valley's minimum lies between steps more often than on one: the parabola through the
+      // lowest step and its neighbours puts it there.
+      const size_t lowest = static_cast<size_t>(
+          std::min_element(costs.begin(), costs.end(), [](const auto& a, const auto& b) { return a.second < b.second; }) -
+          costs.begin());
+      if (lowest == 0 || lowest + 1 == costs.size()) continue;
+      const auto [x0, y0] = costs[lowest - 1];
+      const auto [x1, y1] = costs[lowest];
+      const auto [x2, y2] = costs[lowest + 1];
+      const double denominator = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0);
+      if (!(std::abs(denominator) > 0.0)) continue;
+      const double vertex =
+          x1 - 0.5 * ((x1 - x0) * (x1 - x0) * (y1 - y2) - (x1 - x2) * (x1 - x2) * (y1 - y0)) / denominator;
+      if (vertex > x0 && vertex < x2 && vertex != x1) tryStep(axis, vertex);
     }
     if (stepped) {
       const RefinedRotation r = refineRotation(matches, best_step, threshold, settings_.refine_iterations);

@@ -251,6 +251,7 @@ RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double th
   const double dof = std::max(1, 2 * inliers - 3);
   const double sigma2 = sum_sq / dof;
   out.residual_sigma = std::sqrt(sigma2);
+  out.truncated_cost = sum_sq + static_cast<double>(n - static_cast<size_t>(inliers)) * gate2;
   Eigen::FullPivLU<Eigen::Matrix3d> lu(A);
   out.covariance = lu.isInvertible() ? Eigen::Matrix3d(sigma2 * lu.inverse())
                                      : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
@@ -466,6 +467,7 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   out.inliers = inliers;
   const double sigma2 = final_fit.cost / std::max(1, inliers - 5);
   out.residual_sigma = std::sqrt(sigma2);
+  out.truncated_cost = final_fit.cost + static_cast<double>(m.size() - static_cast<size_t>(inliers)) * threshold * threshold;
   Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(final_fit.A);
   if (lu.isInvertible()) {
     out.covariance = sigma2 * lu.inverse().topLeftCorner<3, 3>();
@@ -588,7 +590,7 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
 }
 
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b) {
-  if (a.pure_rotation == b.pure_rotation) return a.inliers > b.inliers;
+  if (a.pure_rotation == b.pure_rotation) return a.truncated_cost < b.truncated_cost;
   // The rule of refineRotation: general motion when (general - pure) >= gain * general.
   const RefinedRotation& general = a.pure_rotation ? b : a;
   const RefinedRotation& pure = a.pure_rotation ? a : b;
@@ -606,6 +608,19 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
   const bool pure = start.translation.isZero() || extra < kTranslationGain * start.epipolar_inliers;
   if (pure) return refinePureRotation(matches, start.rotation, threshold, iterations);
   return refineGeneral(matches, start.rotation, start.translation, threshold, iterations, warm);
+}
+
+double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
+                             double threshold) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  rotateAll(m, rotation);
+  s.residuals.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, translation.data(), s.residuals.data());
+  const double gate2 = threshold * threshold;
+  double cost = 0.0;
+  for (size_t i = 0; i < n; ++i) cost += usable(s, i) ? std::min(s.residuals[i], gate2) : gate2;
+  return cost;
 }
 
 JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {

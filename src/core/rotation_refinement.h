@@ -83,6 +83,13 @@ struct VerifiedRotation {
 VerifiedRotation verifyRotation(FrameMatches& matches, const Eigen::Matrix3d& rotation, double threshold,
                                 uint64_t seed);
 
+/// The truncated quadratic cost [rad^2] of `rotation` with the unit translation direction
+/// `translation` (previous frame) over all the matches: each match's squared angular distance from
+/// its epipolar plane, at most threshold^2 (also for a match behind either camera). Lower is a
+/// tighter explanation; comparable between rotations of one frame at one threshold.
+double truncatedEpipolarCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
+                             double threshold);
+
 /// The refined rotation with its uncertainty.
 struct RefinedRotation {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
@@ -92,10 +99,16 @@ struct RefinedRotation {
   /// Unit translation direction in the previous frame (general motion); zero for pure rotation.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   double residual_sigma = 0.0;  ///< RMS residual of the inliers [rad] (the covariance's sigma)
+  /// Truncated quadratic cost over all the frame's matches [rad^2]: each inlier's squared residual,
+  /// each other match the squared gate (MSAC's score, Torr and Zisserman). Comparable between
+  /// refinements of one frame under the same model.
+  double truncated_cost = 0.0;
 };
 
-/// True when refinement `a` explains the matches better than `b`: more inliers under the same
-/// model; a general motion (rotation + translation, two more degrees of freedom) must explain
+/// True when refinement `a` explains the matches better than `b`: a lower truncated cost under the
+/// same model (a count of inliers saturates when the gate is wide against the residuals, as it is
+/// along the rotation/translation valley of a close scene, where the wrong rotation and the right
+/// one both keep nearly every match but not equally tightly); a general motion (rotation + translation, two more degrees of freedom) must explain
 /// clearly more than a pure rotation -- the margin of the model selection in refineRotation -- and a
 /// pure rotation wins over a general motion unless that margin is met.
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
