@@ -124,10 +124,6 @@ void sortKeysDescending(std::vector<uint64_t>* keys, std::vector<uint64_t>* scra
   keys->swap(*scratch);
 }
 
-}  // namespace
-
-namespace {
-
 /// The indices 0 .. n - 1 ordered by the image row rowOf(k) returns (a stable counting sort; rows
 /// outside 0 .. height - 1 count as the nearest one): patches read in that order share the rows
 /// already in cache.
@@ -450,13 +446,13 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
     smoothed = gray;
   }
 
-  // Pattern offsets as byte offsets in the smoothed image, computed once per call. The offsets
-  // reach kBriefHalfPatch rows either way; a row step too large for 32-bit offsets (no real
-  // image) takes the portable kernel with 64-bit indexing.
+  // The pattern as 32-bit byte offsets in the smoothed image, computed once per call. They reach
+  // kBriefHalfPatch rows either way; a row step too large for them (no real image) takes the plain
+  // loop below, which indexes in 64 bits, for every corner (and the offsets go unused).
   const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(smoothed.step[0]);
   const bool offsets_fit = step <= std::numeric_limits<int32_t>::max() / (2 * kBriefHalfPatch + 2);
-  static const brief_kernels::TestKernel vector_tests = brief_kernels::selectKernel();
-  const brief_kernels::TestOffsets offsets = brief_kernels::testOffsets(offsets_fit ? step : 0);  // unused unless they fit
+  static const brief_kernels::TestKernel tests = brief_kernels::selectKernel();
+  const brief_kernels::TestOffsets offsets = brief_kernels::testOffsets(offsets_fit ? step : 0);
 
   features->keypoints.reserve(keypoints.size());
   Workspace& w = work_;
@@ -483,10 +479,12 @@ void FeatureFrontEnd::describe(const cv::Mat& gray, const std::vector<cv::Point2
     // A vector kernel may read a few bytes past a patch pixel: those must lie inside the image's
     // memory, which holds unless the patch ends within that many bytes of the end of the image's
     // last row.
-    if (offsets_fit && (y + kBriefHalfPatch < height - 1 || x + kBriefHalfPatch + brief_kernels::kBytesPastPatch < width)) {
-      features->descriptors[k] = vector_tests(centre, step, offsets);
+    if (offsets_fit &&
+        (y + kBriefHalfPatch < height - 1 || x + kBriefHalfPatch + brief_kernels::kBytesPastPatch < width)) {
+      features->descriptors[k] = tests(centre, step, offsets);
       continue;
     }
+    // Bit i = I(p1) < I(p2), one test at a time.
     BriefDescriptor descriptor{};
     const auto& pattern = briefPattern();
     for (int i = 0; i < 256; ++i) {
