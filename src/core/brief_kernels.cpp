@@ -124,11 +124,11 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi"))) BriefDescriptor testsAvx5
   // memory), so this kernel reads nothing outside the patch.
   constexpr __mmask64 kRowBytes = (uint64_t{1} << kPatchSide) - 1;
   const uint8_t* top_left = centre - kBriefHalfPatch * step - kBriefHalfPatch;
-  __m512i pairs[2 * kRowQuads];
-  for (int k = 0; k < 2 * kRowQuads; ++k) {
+  static_assert(2 * kRowQuads == kRowPairs, "the tables take the registers two by two");
+  __m512i pairs[kRowPairs];
+  for (int k = 0; k < kRowPairs; ++k) {
     const uint8_t* upper = top_left + 2 * k * step;
-    pairs[k] = _mm512_setzero_si512();
-    if (2 * k < kPatchSide) pairs[k] = _mm512_maskz_loadu_epi8(kRowBytes, upper);
+    pairs[k] = _mm512_maskz_loadu_epi8(kRowBytes, upper);
     if (2 * k + 1 < kPatchSide) pairs[k] = _mm512_mask_loadu_epi8(pairs[k], kRowBytes << 32, upper + step - 32);
   }
   BriefDescriptor descriptor{};

@@ -597,10 +597,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     // Steps are ranked by their truncated cost, not by a count: along the valley the wrong rotation
     // and the right one keep nearly every match within the gate, and only how tightly tells them
     // apart.
-    VerifiedRotation best_step;
+    VerifiedRotation best_step;  // the best step, once one beats the winner
     double best_cost = 0.0;
     if (!axes.empty()) {
-      best_step = verifyRotation(matches, refined.rotation, threshold, seed + 7);
       best_cost = truncatedEpipolarCost(matches, refined.rotation, refined.translation, threshold);
       diagnostics.valley_searched = true;
     }
