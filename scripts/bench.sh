@@ -38,7 +38,8 @@ echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
 # run_eval <group> <label> <x> <folder> [evaluate options...]: appends the JSON lines, tagged with
 # the benchmark group (shared, rendered, outliers, translation), a label and an x value.
 # REPEAT=N runs evaluate N times and keeps, per method, the run with the shortest front end
-# (detect + describe + match): the figures are the same in every run, the times the least disturbed.
+# (every stage before the estimate): the figures are the same in every run, the times the least
+# disturbed.
 run_eval() {
   local group=$1 label=$2 x=$3 folder=$4
   shift 4
@@ -60,7 +61,7 @@ for line in sys.stdin:
     rec = json.loads(line)
     rec.update(group=group, label=label, x=float(x))
     ms = rec.get("ms_per_frame") or {}
-    front_end = sum(ms.get(k) or 0.0 for k in ("detect", "describe", "match"))
+    front_end = (ms.get("total") or 0.0) - (ms.get("estimate") or 0.0)
     if rec["method"] not in best or front_end < best[rec["method"]][0]:
         best[rec["method"]] = (front_end, rec)
 for _, rec in best.values():

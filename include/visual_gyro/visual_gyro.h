@@ -18,9 +18,14 @@ namespace visual_gyro {
 
 /// Wall-clock time of each stage of a frame [ms].
 struct FrameTimes {
-  double detect = 0.0;
-  double describe = 0.0;
+  double detect = 0.0;    ///< FAST corners and their bucketing
+  double describe = 0.0;  ///< smoothing and BRIEF descriptors
+  /// Descriptor matching (guided, global, and global again when guided matching gave no
+  /// estimate).
   double match = 0.0;
+  /// Sub-pixel alignment: refinement of the matches and tracking of unmatched corners
+  /// (refineMatches() and trackUnmatched(); 0 when both are off).
+  double align = 0.0;
   /// The rotation estimates of the frame (two when guided matching fell back to global); their
   /// parts are in FrameResult::rotation.times.
   double estimate = 0.0;

@@ -220,13 +220,15 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     auto t0 = std::chrono::steady_clock::now();
     try {
       matchFrames(prior);
+      times.match = elapsedMs(t0);
+      t0 = std::chrono::steady_clock::now();
       front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
       front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
+      times.align = elapsedMs(t0);
     } catch (const std::exception& e) {
       // Before any state changed: the frame is rejected, the previous one stays.
       return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
     }
-    times.match = elapsedMs(t0);
     collectMatches(&result);
     if (settings_.run_estimator) {
       result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
@@ -238,10 +240,12 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
         const EstimateTimes guided_times = result.rotation.times;
         t0 = std::chrono::steady_clock::now();
         front_end_.match(previous_features_, features_, &matches_);
+        times.match += elapsedMs(t0);
+        t0 = std::chrono::steady_clock::now();
         front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
         front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
+        times.align += elapsedMs(t0);
         matching_ = "global_fallback";
-        times.match += elapsedMs(t0);
         collectMatches(&result);
         result.rotation = estimator_->estimate(result.previous_bearings, result.current_bearings,
                                                prior);

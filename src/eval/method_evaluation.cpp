@@ -59,6 +59,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     s.detect += p.front_end.detect;
     s.describe += p.front_end.describe;
     s.match += p.front_end.match;
+    s.align += p.front_end.align;
     s.estimate += e.estimate_ms;
     s.vote += e.vote_ms;
     s.vote_device += e.vote_device_ms;
@@ -75,11 +76,12 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     s.detect /= n;
     s.describe /= n;
     s.match /= n;
+    s.align /= n;
     s.estimate /= n;
     s.vote /= n;
     s.vote_device /= n;
     s.refine /= n;
-    s.total = s.detect + s.describe + s.match + s.estimate;
+    s.total = s.detect + s.describe + s.match + s.align + s.estimate;
     s.matches_mean /= n;
     s.tracked_mean /= n;
   }
@@ -121,7 +123,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   if (s.tracked_mean > 0.0) out << "; " << fmt(s.tracked_mean, 1) << " of them tracked";
   out << ")\n";
   out << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
-      << fmt(s.match) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
+      << fmt(s.match) << ", align " << fmt(s.align) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
   if (std::isfinite(s.vote)) {
     out << "   estimate split  vote " << fmt(s.vote);
     if (std::isfinite(s.vote_device)) out << " (GPU kernels " << fmt(s.vote_device) << ")";
@@ -134,7 +136,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
 std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
   const metrics::AccuracySummary& a = s.accuracy;
   JsonObject times;
-  times.add("detect", s.detect).add("describe", s.describe).add("match", s.match)
+  times.add("detect", s.detect).add("describe", s.describe).add("match", s.match).add("align", s.align)
       .add("estimate", s.estimate).add("total", s.total);
   if (std::isfinite(s.vote)) times.add("vote", s.vote).add("vote_device", s.vote_device).add("refine", s.refine);
   JsonObject j;

@@ -34,7 +34,7 @@ struct MethodSummary {
   std::string method, backend;
   std::vector<FrameRow> rows;
   metrics::AccuracySummary accuracy;
-  double detect = 0, describe = 0, match = 0, estimate = 0, total = 0;  ///< mean ms per frame
+  double detect = 0, describe = 0, match = 0, align = 0, estimate = 0, total = 0;  ///< mean ms per frame
   double vote = 0, vote_device = 0, refine = 0;  ///< mean ms per frame; NaN for the baselines
   double matches_mean = 0;
   double true_translation_mean = std::numeric_limits<double>::quiet_NaN();  ///< [m] (poses)

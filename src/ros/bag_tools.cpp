@@ -293,13 +293,14 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
   const Truth truth(truth_bag);
   // Scored as evaluate scores: an invalid estimate is the identity (metrics::scoreFrame).
   metrics::AccuracyAccumulator accuracy;
-  double detect = 0, describe = 0, match = 0, estimate = 0, total = 0, latency = 0;
+  double detect = 0, describe = 0, match = 0, align = 0, estimate = 0, total = 0, latency = 0;
   for (const auto& e : estimates) {
     if (s.method.empty()) s.method = e.method;
     if (s.backend.empty()) s.backend = e.backend;
     detect += e.detect_ms;
     describe += e.describe_ms;
     match += e.match_ms;
+    align += e.align_ms;
     estimate += e.estimate_ms;
     total += e.total_ms;
     latency += e.latency_ms;
@@ -334,6 +335,7 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
     s.detect_ms = detect / n;
     s.describe_ms = describe / n;
     s.match_ms = match / n;
+    s.align_ms = align / n;
     s.estimate_ms = estimate / n;
     s.total_ms = total / n;
     s.latency_ms = latency / n;
@@ -343,7 +345,7 @@ OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& 
 
 std::string OutputSummary::json() const {
   JsonObject times;
-  times.add("detect", detect_ms).add("describe", describe_ms).add("match", match_ms).add("estimate", estimate_ms)
+  times.add("detect", detect_ms).add("describe", describe_ms).add("match", match_ms).add("align", align_ms).add("estimate", estimate_ms)
       .add("total", total_ms);
   JsonObject j;
   j.add("dataset", dataset).add("method", method);
@@ -372,7 +374,7 @@ std::string OutputSummary::text() const {
     << "  yaw error per frame:      RMSE " << num(a.yaw_rmse_deg) << " deg, max " << num(a.yaw_max_deg) << " deg\n"
     << "  mean rate " << num(a.mean_rate_dps, 2) << " deg/s, rate RMSE vs gyro " << num(a.rate_rmse_dps) << " deg/s\n"
     << "  time per frame: detect " << num(detect_ms, 2) << " ms, describe " << num(describe_ms, 2) << " ms, match "
-    << num(match_ms, 2) << " ms, estimate " << num(estimate_ms, 2) << " ms, total " << num(total_ms, 2)
+    << num(match_ms, 2) << " ms, align " << num(align_ms, 2) << " ms, estimate " << num(estimate_ms, 2) << " ms, total " << num(total_ms, 2)
     << " ms; latency image callback -> publish " << num(latency_ms, 2) << " ms";
   return t.str();
 }

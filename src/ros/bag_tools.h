@@ -87,7 +87,7 @@ struct OutputSummary {
   /// stamps, the errors; rate RMSE against the gyro, else NaN), as the metrics module scores them.
   metrics::AccuracySummary accuracy;
   int imu_published = 0;   ///< Imu messages
-  double detect_ms = NAN, describe_ms = NAN, match_ms = NAN, estimate_ms = NAN, total_ms = NAN;
+  double detect_ms = NAN, describe_ms = NAN, match_ms = NAN, align_ms = NAN, estimate_ms = NAN, total_ms = NAN;
   double latency_ms = NAN;  ///< mean image-callback-to-publish wall time
 
   /// One JSON object on one line (NaN -> null).

@@ -63,6 +63,7 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   msg->detect_ms = result.times.detect;
   msg->describe_ms = result.times.describe;
   msg->match_ms = result.times.match;
+  msg->align_ms = result.times.align;
   msg->estimate_ms = result.times.estimate;
   msg->total_ms = result.times.total;
   msg->valid = frame.valid;
