@@ -430,6 +430,27 @@ TEST(Verification, MatchesInOppositeHemispheresChangeNothing) {
   }
 }
 
+TEST(Verification, FittedTranslationLowersTheCostTowardTheTruth) {
+  // A valley step is costed at a translation fitted to its rotation: from a start 10 deg off, the
+  // refits reach the true direction and a lower truncated cost; with no refit nothing changes.
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, -1 * kDeg, 0.5 * kDeg);
+  const Vector3d t = Vector3d(0.3, -0.1, 1.0).normalized();
+  const Scene scene = makeScene(R, t, 500, 0.5e-3, 0.3, 2, 30, 29);
+  vg::FrameMatches matches;
+  matches.assign(scene.previous, scene.current);
+  const double threshold = 0.1 * kDeg;
+  const Vector3d start = Eigen::AngleAxisd(10 * kDeg, Vector3d::UnitY()) * t;
+  const double start_cost = vg::truncatedEpipolarCost(matches, R, start, threshold);
+  Vector3d unchanged = start;
+  EXPECT_EQ(vg::fittedTranslationCost(matches, R, &unchanged, threshold, 0), start_cost);
+  EXPECT_EQ(unchanged, start);
+  Vector3d fitted = start;
+  const double fitted_cost = vg::fittedTranslationCost(matches, R, &fitted, threshold, 3);
+  EXPECT_LT(fitted_cost, 0.5 * start_cost);
+  EXPECT_NEAR(fitted.norm(), 1.0, 1e-12);
+  EXPECT_LT(std::acos(std::min(1.0, fitted.dot(t))), 1.0 * kDeg);
+}
+
 TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {
   const double yaw = -2.3 * kDeg;
   const Scene s = makeScene(vg::rotationFromYawPitchRoll(yaw, 0.2 * kDeg, 0.1 * kDeg), Vector3d::Zero(), 600,

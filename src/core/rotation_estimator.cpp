@@ -39,6 +39,10 @@ constexpr double kMinValleyLateral = 0.3;
 // verified count (refinement lost much of the support the looser verification saw: a wrong basin,
 // whose translation says nothing of the true valley) also searches the two axes across the view.
 constexpr double kValleyInlierRatio = 0.85;
+// Least-squares refits of each valley step's translation: a step is costed at a translation fitted
+// to it, as the winner is at its refined one, or the winner's tighter translation alone would make
+// it look better than a step in the right basin.
+constexpr int kValleyRefits = 3;
 
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -570,6 +574,20 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
     }
   }
+  // Local optimisation: the refined rotation is better than the voted one, so the translation
+  // search on it finds a better epipole and more inliers; repeat while the inlier set grows. Before
+  // the valley search: a winner refined as a pure rotation (a translation that explained few more
+  // matches than none) may turn out to have one here, and then its valley must be searched.
+  for (int round = 1; round <= 1; ++round) {
+    const VerifiedRotation again = verifyRotation(matches, refined.rotation, threshold, seed + round);
+    // A couple more inliers cannot move the solution measurably; only a clearly larger set is
+    // worth another refinement.
+    if (again.inliers <= refined.inliers + std::max(3, refined.inliers / 50)) break;
+    const RefinedRotation next =
+        refineRotation(matches, again, threshold, settings_.refine_iterations, true);
+    if (next.inliers <= refined.inliers) break;
+    refined = next;
+  }
   // The valley of a close scene. A lateral translation t and a rotation about view x t move the
   // image alike, to first order; only the depth differences between the points tell them apart.
   // Candidates that start on the wrong side of that valley converge to its nearest local
@@ -609,9 +627,10 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     const double base_cost = best_cost;
     const auto tryStep = [&](const Eigen::Vector3d& axis, double step_deg) {
       const Eigen::Matrix3d stepped_rotation = so3Exp(step_deg * kDeg * axis) * refined.rotation;
-      const VerifiedRotation v = verifyRotation(matches, stepped_rotation, threshold, seed + 7);
-      const Eigen::Vector3d& translation = v.translation.isZero() ? refined.translation : v.translation;
-      const double cost = truncatedEpipolarCost(matches, stepped_rotation, translation, threshold);
+      VerifiedRotation v = verifyRotation(matches, stepped_rotation, threshold, seed + 7);
+      Eigen::Vector3d translation = v.translation.isZero() ? refined.translation : v.translation;
+      const double cost = fittedTranslationCost(matches, stepped_rotation, &translation, threshold, kValleyRefits);
+      v.translation = translation;
       if (cost < best_cost) {
         best_step = v;
         best_cost = cost;
@@ -656,18 +675,6 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   }
   diagnostics.winner_source = winner->source;
   const VerifiedRotation& best = winner->rotation;
-  // Local optimisation: the refined rotation is better than the voted one, so the translation
-  // search on it finds a better epipole and more inliers; repeat while the inlier set grows.
-  for (int round = 1; round <= 1; ++round) {
-    const VerifiedRotation again = verifyRotation(matches, refined.rotation, threshold, seed + round);
-    // A couple more inliers cannot move the solution measurably; only a clearly larger set is
-    // worth another refinement.
-    if (again.inliers <= refined.inliers + std::max(3, refined.inliers / 50)) break;
-    const RefinedRotation next =
-        refineRotation(matches, again, threshold, settings_.refine_iterations, true);
-    if (next.inliers <= refined.inliers) break;
-    refined = next;
-  }
   fillAngles(refined.rotation, &result);
   result.covariance = honestCovariance(matches, refined, contenders, threshold, refined_positions_,
                                        &diagnostics.effective_matches);

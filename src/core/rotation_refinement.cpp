@@ -589,6 +589,40 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
   return out;
 }
 
+double fittedTranslationCost(FrameMatches& m, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
+                             double threshold, int refits) {
+  double cost = truncatedEpipolarCost(m, rotation, *translation, threshold);
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  const passes::MatchArrays arrays = matchArrays(m);
+  s.weights.resize(n);
+  // The normals of `rotation` are in the scratch (truncatedEpipolarCost computed them).
+  for (int refit = 0; refit < refits; ++refit) {
+    passes::passes().gateWeights(arrays, n, translation->data(), threshold * threshold, s.weights.data());
+    double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      const double sx = s.weights[i] * s.nx[i], sy = s.weights[i] * s.ny[i], sz = s.weights[i] * s.nz[i];
+      m00 += sx * s.nx[i];
+      m10 += sy * s.nx[i];
+      m11 += sy * s.ny[i];
+      m20 += sz * s.nx[i];
+      m21 += sz * s.ny[i];
+      m22 += sz * s.nz[i];
+    }
+    Eigen::Matrix3d M;
+    M << m00, m10, m20, m10, m11, m21, m20, m21, m22;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
+    Eigen::Vector3d refitted = eig.eigenvectors().col(0);
+    // The eigenvector's sign is arbitrary; the translation's is not (points in front).
+    if (refitted.dot(*translation) < 0.0) refitted = -refitted;
+    const double refitted_cost = truncatedEpipolarCost(m, rotation, refitted, threshold);
+    if (!(refitted_cost < cost)) break;
+    cost = refitted_cost;
+    *translation = refitted;
+  }
+  return cost;
+}
+
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b) {
   if (a.pure_rotation == b.pure_rotation) return a.truncated_cost < b.truncated_cost;
   // The rule of refineRotation: general motion when (general - pure) >= gain * general.

@@ -90,6 +90,13 @@ VerifiedRotation verifyRotation(FrameMatches& matches, const Eigen::Matrix3d& ro
 double truncatedEpipolarCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
                              double threshold);
 
+/// truncatedEpipolarCost() of `rotation` with the translation that least-squares refits over the
+/// inliers reach from *translation (at most `refits`, each kept only when it lowers the cost);
+/// *translation becomes that translation. A rotation's cost at its own fitted translation, not at
+/// a sampled one, is what compares it fairly with a refined rotation.
+double fittedTranslationCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
+                             double threshold, int refits);
+
 /// The refined rotation with its uncertainty.
 struct RefinedRotation {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
