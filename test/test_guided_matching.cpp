@@ -177,6 +177,34 @@ TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
             "global");
 }
 
+// Near structure under sideways motion: points move from where the rotation puts them by their
+// parallax, tens of pixels here, more than the base search radius. Once a pair has measured it, the
+// guided search covers it and finds the near points' matches as global matching does (they are what
+// tells rotation from translation); a search sized for the rotation alone would lose them.
+TEST(GuidedMatching, SearchCoversTheParallaxOfTheLastPair) {
+  vg::RenderSettings scene;
+  scene.preset = vg::RenderPreset::kDroneNear;
+  scene.setCentredCamera(480, 360, 380.0);
+  vg::VisualGyroSettings guided_settings = vg::test::cpuSettings(), global_settings = guided_settings;
+  global_settings.front_end.matching = vg::MatchingMode::kGlobal;
+  vg::VisualGyro guided(cameraOf(scene), guided_settings), global(cameraOf(scene), global_settings);
+  constexpr double kStepM = 0.2;  // sideways per frame
+  int guided_matches = 0, global_matches = 0;
+  for (int k = 0; k < 6; ++k) {
+    const cv::Mat image =
+        vg::renderView(scene, yawPitch(0.5 * k, 0.0), Eigen::Vector3d(kStepM * k, 0.0, 0.0));
+    const vg::FrameResult a = guided.processFrame(image, 1.0 + 0.05 * k);
+    const vg::FrameResult b = global.processFrame(image, 1.0 + 0.05 * k);
+    if (k < 3) continue;  // the first pair is matched globally, the second measures the parallax
+    ASSERT_TRUE(a.hasEstimate()) << "frame " << k << ": " << a.reason;
+    EXPECT_EQ(a.matching, "guided") << "frame " << k;
+    guided_matches += static_cast<int>(a.previous_bearings.size()) - a.tracked;
+    global_matches += static_cast<int>(b.previous_bearings.size()) - b.tracked;
+  }
+  std::printf("descriptor matches of frames 3-5: guided %d, global %d\n", guided_matches, global_matches);
+  EXPECT_GE(guided_matches, 0.95 * global_matches);
+}
+
 // Adaptive detection: a low-contrast half of the image, without a corner at the normal FAST
 // threshold, gets corners from the lower per-cell threshold once the strong corners cannot fill
 // the budget; while they can, the selection is that of the fixed threshold.

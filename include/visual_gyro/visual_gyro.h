@@ -143,6 +143,9 @@ class VisualGyro {
   void collectMatches(FrameResult* result) const;
   /// Records how far `prior` was from `estimate` (see prior_uncertainty_rad_).
   void updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate);
+  /// Records how far the matches of `result` lie from where its estimated rotation alone puts
+  /// them (search_parallax_rad_; 0 without an estimate).
+  void updateSearchParallax(const FrameResult& result);
 
   CameraModel camera_;
   VisualGyroSettings settings_;
@@ -157,6 +160,10 @@ class VisualGyro {
   /// How far the last prior was from that frame's estimate [rad] (identity counts as the prior
   /// when there was none): widens the guided search.
   double prior_uncertainty_rad_ = 0.0;
+  /// Twice the last pair's median parallax [rad] (see updateSearchParallax()): widens the guided
+  /// search too.
+  double search_parallax_rad_ = 0.0;
+  std::vector<double> parallax_scratch_;  // per-match parallax, reused
   std::string matching_;  // how the last frame was matched (FrameResult::matching)
   // Per-frame buffers, reused (swapped with the previous frame's) so that the steady state does not
   // allocate in the front end.

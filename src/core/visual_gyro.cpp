@@ -1,6 +1,7 @@
 #include "visual_gyro/visual_gyro.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -131,6 +132,7 @@ void VisualGyro::reset() {
   previous_keypoint_bearings_.clear();
   prior_.reset();
   prior_uncertainty_rad_ = 0.0;
+  search_parallax_rad_ = 0.0;
 }
 
 void VisualGyro::setCamera(const CameraModel& camera) {
@@ -258,6 +260,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
       // An implausible rotation is no prior for the next frame either.
       prior_.update(result.rotation, dt);
       updatePriorUncertainty(prior, result.rotation);
+      updateSearchParallax(result);
       result.status = result.rotation.status;
       result.reason = result.rotation.reason;
       if (result.hasEstimate()) {
@@ -317,8 +320,8 @@ void VisualGyro::matchFrames(const RotationPrior& prior) {
     return;
   }
   const Eigen::Matrix3d rotation = so3Exp(prior.rotation_vector);
-  front_end_.predict(camera_, rotation, prior_uncertainty_rad_, previous_keypoint_bearings_,
-                     &prediction_);
+  front_end_.predict(camera_, rotation, prior_uncertainty_rad_ + search_parallax_rad_,
+                     previous_keypoint_bearings_, &prediction_);
   front_end_.matchGuided(previous_features_, features_, prediction_, &matches_);
   matching_ = "guided";
   // Too few: the prior is probably wrong (a jolt, a bad last estimate); global matching does not
@@ -341,6 +344,31 @@ void VisualGyro::updatePriorUncertainty(const RotationPrior& prior, const Rotati
   const double error = rotationAngleBetween(so3Exp(predicted), estimate.rotation);
   const double sigma = std::sqrt(std::max(0.0, estimate.covariance.diagonal().maxCoeff()));
   prior_uncertainty_rad_ = std::isfinite(error + sigma) ? error + 3.0 * sigma : 0.0;
+}
+
+void VisualGyro::updateSearchParallax(const FrameResult& result) {
+  search_parallax_rad_ = 0.0;
+  const size_t n = result.previous_bearings.size();
+  if (!result.rotation.valid() || n == 0) return;
+  // A match's parallax is its angle from where the rotation alone puts it: the translation times
+  // the point's inverse depth. The guided search predicts with the rotation alone, so a match
+  // further than the search radius from its prediction is lost, the nearest points first, though
+  // they are the ones that tell rotation from translation near structure. The next search
+  // therefore also covers the last pair's parallax: its median over the matches (wrong matches,
+  // far off, do not move it), doubled to reach points up to twice the median inverse depth. Under
+  // forward motion guided_radius_growth already covers most of it; there this only widens the
+  // search a little.
+  constexpr double kParallaxCover = 2.0;
+  const Eigen::Matrix3d& rotation = result.rotation.rotation;
+  parallax_scratch_.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d predicted = rotation.transpose() * result.previous_bearings[i];
+    const Eigen::Vector3d& current = result.current_bearings[i];
+    parallax_scratch_[i] = std::atan2(predicted.cross(current).norm(), predicted.dot(current));
+  }
+  const auto median = parallax_scratch_.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(parallax_scratch_.begin(), median, parallax_scratch_.end());
+  if (std::isfinite(*median)) search_parallax_rad_ = kParallaxCover * *median;
 }
 
 }  // namespace visual_gyro
