@@ -104,6 +104,15 @@ if [[ -f ${OUT}/rendered/forward/poses.txt ]]; then
   done
 fi
 
+# 4a. Faster motion near structure: the shaken drone with a growing frame stride (pairs K frames
+#     apart: K times the rotation, translation and parallax of a pair, as a faster shake or a slower
+#     camera gives).
+if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
+  for s in 2 3 4; do
+    run_eval motion "euroc_mh01_shake_stride${s}" "${s}" "${DATA_DIR}/euroc_mh01_shake" --stride "${s}"
+  done
+fi
+
 # 4b. Front ends on the same frames, vote only: the native front end with guided matching (the
 #     defaults, sub-pixel positions with tracking; sub-pixel positions alone; integer positions) and
 #     with global matching, the fixed-threshold global front end with integer positions it replaced
