@@ -477,6 +477,34 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   return out;
 }
 
+/// Least-squares refit of the translation: the eigenvector of the smallest eigenvalue of
+/// sum n n^T over the inliers of `translation`, each normal scaled to its angular residual, for
+/// the normals in the scratch (those of the rotation last applied by rotateAll). The squared scale
+/// needs no square root. The weights (the squared scale of the inliers, zero for the others, which
+/// then add exact zeros) come from one vectorised pass; the sums run in index order. The
+/// eigensolver reads the lower triangle only, so only that is summed. Its sign is the
+/// eigensolver's.
+Eigen::Vector3d refitTranslation(FrameMatches& m, const Eigen::Vector3d& translation, double threshold) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  s.weights.resize(n);
+  passes::passes().gateWeights(matchArrays(m), n, translation.data(), threshold * threshold, s.weights.data());
+  double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    const double sx = s.weights[i] * s.nx[i], sy = s.weights[i] * s.ny[i], sz = s.weights[i] * s.nz[i];
+    m00 += sx * s.nx[i];
+    m10 += sy * s.nx[i];
+    m11 += sy * s.ny[i];
+    m20 += sz * s.nx[i];
+    m21 += sz * s.ny[i];
+    m22 += sz * s.nz[i];
+  }
+  Eigen::Matrix3d M;
+  M << m00, m10, m20, m10, m11, m21, m20, m21, m22;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
+  return eig.eigenvectors().col(0);
+}
+
 }  // namespace
 
 void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const std::vector<Eigen::Vector3d>& current) {
@@ -555,30 +583,9 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
     }
     if (!out.translation.isZero())
       out.epipolar_inliers = countEpipolarInliers(m, out.translation, threshold, false, -1);
-    // Least-squares refit: t is the eigenvector of the smallest eigenvalue of sum n n^T over the
-    // inliers (each normal scaled to its angular residual), repeated while the support grows.
-    const passes::MatchArrays arrays = matchArrays(m);
-    s.weights.resize(n);
+    // Least-squares refits, repeated while the support grows.
     for (int refit = 0; refit < 3 && !out.translation.isZero(); ++refit) {
-      // Scaled to its angular residual: the squared scale needs no square root. The weights (the
-      // squared scale of the inliers, zero for the others, which then add exact zeros) come from
-      // one vectorised pass; the sums run in index order. The eigensolver reads the lower triangle
-      // only, so only that is summed.
-      passes::passes().gateWeights(arrays, n, out.translation.data(), threshold * threshold, s.weights.data());
-      double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
-      for (size_t i = 0; i < n; ++i) {
-        const double sx = s.weights[i] * s.nx[i], sy = s.weights[i] * s.ny[i], sz = s.weights[i] * s.nz[i];
-        m00 += sx * s.nx[i];
-        m10 += sy * s.nx[i];
-        m11 += sy * s.ny[i];
-        m20 += sz * s.nx[i];
-        m21 += sz * s.ny[i];
-        m22 += sz * s.nz[i];
-      }
-      Eigen::Matrix3d M;
-      M << m00, m10, m20, m10, m11, m21, m20, m21, m22;
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
-      const Eigen::Vector3d refitted = eig.eigenvectors().col(0);
+      const Eigen::Vector3d refitted = refitTranslation(m, out.translation, threshold);
       const int count = countEpipolarInliers(m, refitted, threshold, false, out.epipolar_inliers);
       if (count <= out.epipolar_inliers) break;
       out.epipolar_inliers = count;
@@ -591,28 +598,10 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
 
 double fittedTranslationCost(FrameMatches& m, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
                              double threshold, int refits) {
+  // Each cost leaves the normals of `rotation` in the scratch, which the refit reads.
   double cost = truncatedEpipolarCost(m, rotation, *translation, threshold);
-  const size_t n = m.size();
-  FrameMatches::Scratch& s = m.scratch;
-  const passes::MatchArrays arrays = matchArrays(m);
-  s.weights.resize(n);
-  // The normals of `rotation` are in the scratch (truncatedEpipolarCost computed them).
   for (int refit = 0; refit < refits; ++refit) {
-    passes::passes().gateWeights(arrays, n, translation->data(), threshold * threshold, s.weights.data());
-    double m00 = 0.0, m10 = 0.0, m11 = 0.0, m20 = 0.0, m21 = 0.0, m22 = 0.0;
-    for (size_t i = 0; i < n; ++i) {
-      const double sx = s.weights[i] * s.nx[i], sy = s.weights[i] * s.ny[i], sz = s.weights[i] * s.nz[i];
-      m00 += sx * s.nx[i];
-      m10 += sy * s.nx[i];
-      m11 += sy * s.ny[i];
-      m20 += sz * s.nx[i];
-      m21 += sz * s.ny[i];
-      m22 += sz * s.nz[i];
-    }
-    Eigen::Matrix3d M;
-    M << m00, m10, m20, m10, m11, m21, m20, m21, m22;
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
-    Eigen::Vector3d refitted = eig.eigenvectors().col(0);
+    Eigen::Vector3d refitted = refitTranslation(m, *translation, threshold);
     // The eigenvector's sign is arbitrary; the translation's is not (points in front).
     if (refitted.dot(*translation) < 0.0) refitted = -refitted;
     const double refitted_cost = truncatedEpipolarCost(m, rotation, refitted, threshold);
