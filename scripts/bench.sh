@@ -36,7 +36,7 @@ start_all=${SECONDS}
 echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
 
 # run_eval <group> <label> <x> <folder> [evaluate options...]: appends the JSON lines, tagged with
-# the benchmark group (shared, rendered, outliers, translation), a label and an x value.
+# the benchmark group (shared, rendered, outliers, translation, motion, front_end), a label and an x value.
 # REPEAT=N runs evaluate N times and keeps, per method, the run with the shortest front end
 # (every stage before the estimate): the figures are the same in every run, the times the least
 # disturbed.

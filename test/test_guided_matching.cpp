@@ -1,5 +1,6 @@
 // Front end for hard footage: guided matching against global matching on a rendered pair with a
-// known rotation, the fallback to global matching after a wrong prior, adaptive FAST thresholds on
+// known rotation, the fallback to global matching after a wrong prior, the search covering the
+// parallax of near structure, adaptive FAST thresholds on
 // low-contrast texture, tracking of unmatched corners, the renderer's degradations and the
 // settings' single source of truth.
 #include <gtest/gtest.h>
@@ -195,7 +196,7 @@ TEST(GuidedMatching, SearchCoversTheParallaxOfTheLastPair) {
         vg::renderView(scene, yawPitch(0.5 * k, 0.0), Eigen::Vector3d(kStepM * k, 0.0, 0.0));
     const vg::FrameResult a = guided.processFrame(image, 1.0 + 0.05 * k);
     const vg::FrameResult b = global.processFrame(image, 1.0 + 0.05 * k);
-    if (k < 3) continue;  // the first pair is matched globally, the second measures the parallax
+    if (k < 3) continue;  // the first pairs settle the prior and the measured parallax
     ASSERT_TRUE(a.hasEstimate()) << "frame " << k << ": " << a.reason;
     EXPECT_EQ(a.matching, "guided") << "frame " << k;
     guided_matches += static_cast<int>(a.previous_bearings.size()) - a.tracked;
