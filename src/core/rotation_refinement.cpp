@@ -484,6 +484,19 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
 /// then add exact zeros) come from one vectorised pass; the sums run in index order. The
 /// eigensolver reads the lower triangle only, so only that is summed. Its sign is the
 /// eigensolver's.
+/// truncatedEpipolarCost() for the normals in the scratch (those of the rotation last applied by
+/// rotateAll), so that several translations are costed without rotating the matches again.
+double truncatedCostOfNormals(FrameMatches& m, const Eigen::Vector3d& translation, double threshold) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  s.residuals.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, translation.data(), s.residuals.data());
+  const double gate2 = threshold * threshold;
+  double cost = 0.0;
+  for (size_t i = 0; i < n; ++i) cost += usable(s, i) ? std::min(s.residuals[i], gate2) : gate2;
+  return cost;
+}
+
 Eigen::Vector3d refitTranslation(FrameMatches& m, const Eigen::Vector3d& translation, double threshold) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
@@ -598,13 +611,14 @@ VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation
 
 double fittedTranslationCost(FrameMatches& m, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
                              double threshold, int refits) {
-  // Each cost leaves the normals of `rotation` in the scratch, which the refit reads.
-  double cost = truncatedEpipolarCost(m, rotation, *translation, threshold);
+  // The matches are rotated once; every cost and refit reads the same normals.
+  rotateAll(m, rotation);
+  double cost = truncatedCostOfNormals(m, *translation, threshold);
   for (int refit = 0; refit < refits; ++refit) {
     Eigen::Vector3d refitted = refitTranslation(m, *translation, threshold);
     // The eigenvector's sign is arbitrary; the translation's is not (points in front).
     if (refitted.dot(*translation) < 0.0) refitted = -refitted;
-    const double refitted_cost = truncatedEpipolarCost(m, rotation, refitted, threshold);
+    const double refitted_cost = truncatedCostOfNormals(m, refitted, threshold);
     if (!(refitted_cost < cost)) break;
     cost = refitted_cost;
     *translation = refitted;
@@ -635,15 +649,8 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
 
 double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
                              double threshold) {
-  const size_t n = m.size();
-  FrameMatches::Scratch& s = m.scratch;
   rotateAll(m, rotation);
-  s.residuals.resize(n);
-  passes::passes().residuals2(matchArrays(m), n, translation.data(), s.residuals.data());
-  const double gate2 = threshold * threshold;
-  double cost = 0.0;
-  for (size_t i = 0; i < n; ++i) cost += usable(s, i) ? std::min(s.residuals[i], gate2) : gate2;
-  return cost;
+  return truncatedCostOfNormals(m, translation, threshold);
 }
 
 JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {
