@@ -146,7 +146,9 @@ def front_end_table(rows):
         parts = []
         if "global" in variants:
             glob_row = variants["global"]
-            parts.append("guided / global time: detect + describe + match "
+            parts.append("guided / global time: match "
+                         f"{fmt(fe_ms(g, ('match',)) / fe_ms(glob_row, ('match',)), 2)}, "
+                         "detect + describe + match "
                          f"{fmt(fe_ms(g, MATCHING_GOAL_STAGES) / fe_ms(glob_row, MATCHING_GOAL_STAGES), 2)}, "
                          f"whole front end {fmt(fe_ms(g) / fe_ms(glob_row), 2)}")
         for other in ("orb", "klt"):

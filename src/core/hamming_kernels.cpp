@@ -362,6 +362,74 @@ __attribute__((target(VISUAL_GYRO_AVX512_TARGET))) void candidatesAvx512(
   *second_out = minLane(_mm256_min_epi32(second, _mm256_mask_mov_epi32(best, first_holder, none)));
 }
 
+/// bruteForceKernel with AVX-512 VPOPCNTDQ: each row against eight consecutive columns at a
+/// time (four 512-bit loads, two descriptors each), row bookkeeping per lane and merged as in
+/// candidatesAvx512, column bookkeeping by a plain masked load and store (the columns are
+/// consecutive). Columns past the last whole step of eight take the scalar rule after the merge;
+/// they come last in search order, so the first of equal distances still wins.
+__attribute__((target(VISUAL_GYRO_AVX512_TARGET))) void bruteForceAvx512(const BriefDescriptor* prev, int n_prev,
+                                                                         const BriefDescriptor* cur, int n_cur,
+                                                                         const SearchTables& t) {
+  for (int j = 0; j < n_cur; ++j) {
+    t.col_best[j] = kNoMatch;
+    t.col_best_d[j] = kNone;
+  }
+  const int n_whole = n_cur - n_cur % 8;
+  const __m256i none = _mm256_set1_epi32(kNone);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  // Consecutive loads leave the sums in the order 0 2 1 3 4 6 5 7 (see below); this restores it.
+  const __m512i order = _mm512_setr_epi64(0, 2, 1, 3, 4, 6, 5, 7);
+  for (int i = 0; i < n_prev; ++i) {
+    const __m512i aa =
+        _mm512_broadcast_i64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(prev[i].data())));
+    const __m256i row = _mm256_set1_epi32(i);
+    __m256i best = none, second = none, best_j = _mm256_setzero_si256();
+    for (int j = 0; j < n_whole; j += 8) {
+      const uint64_t* c = cur[j].data();
+      const __m512i c0 = _mm512_popcnt_epi64(_mm512_xor_si512(_mm512_loadu_si512(c), aa));
+      const __m512i c1 = _mm512_popcnt_epi64(_mm512_xor_si512(_mm512_loadu_si512(c + 8), aa));
+      const __m512i c2 = _mm512_popcnt_epi64(_mm512_xor_si512(_mm512_loadu_si512(c + 16), aa));
+      const __m512i c3 = _mm512_popcnt_epi64(_mm512_xor_si512(_mm512_loadu_si512(c + 24), aa));
+      // Per 128-bit lane the sum of its two words: s01 holds halves of columns 0 2 | 0 2 | 1 3 | 1 3.
+      const __m512i s01 = _mm512_add_epi64(_mm512_unpacklo_epi64(c0, c1), _mm512_unpackhi_epi64(c0, c1));
+      const __m512i s23 = _mm512_add_epi64(_mm512_unpacklo_epi64(c2, c3), _mm512_unpackhi_epi64(c2, c3));
+      const __m512i sums = _mm512_add_epi64(_mm512_shuffle_i64x2(s01, s23, _MM_SHUFFLE(2, 0, 2, 0)),
+                                            _mm512_shuffle_i64x2(s01, s23, _MM_SHUFFLE(3, 1, 3, 1)));
+      const __m256i d = _mm512_cvtepi64_epi32(_mm512_permutexvar_epi64(order, sums));
+      second = _mm256_min_epi32(second, _mm256_max_epi32(best, d));
+      best_j = _mm256_mask_mov_epi32(best_j, _mm256_cmplt_epi32_mask(d, best),
+                                     _mm256_add_epi32(_mm256_set1_epi32(j), lane));
+      best = _mm256_min_epi32(best, d);
+      const __m256i old = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.col_best_d + j));
+      const __mmask8 better = _mm256_cmplt_epi32_mask(d, old);
+      _mm256_mask_storeu_epi32(t.col_best_d + j, better, d);
+      _mm256_mask_storeu_epi32(t.col_best + j, better, row);
+    }
+    int b = minLane(best), s = kNone, b_j = kNoMatch;
+    if (b != kNone) {
+      const __mmask8 holders = _mm256_cmpeq_epi32_mask(best, _mm256_set1_epi32(b));
+      b_j = minLane(_mm256_mask_mov_epi32(none, holders, best_j));
+      const __mmask8 first_holder = static_cast<__mmask8>(holders & (~holders + 1u));
+      s = minLane(_mm256_min_epi32(second, _mm256_mask_mov_epi32(best, first_holder, none)));
+    }
+    const uint64_t a0 = prev[i][0], a1 = prev[i][1], a2 = prev[i][2], a3 = prev[i][3];
+    for (int j = n_whole; j < n_cur; ++j) {
+      const int d = static_cast<int>(_mm_popcnt_u64(a0 ^ cur[j][0]) + _mm_popcnt_u64(a1 ^ cur[j][1]) +
+                                     _mm_popcnt_u64(a2 ^ cur[j][2]) + _mm_popcnt_u64(a3 ^ cur[j][3]));
+      s = std::min(s, std::max(b, d));
+      b_j = d < b ? j : b_j;
+      b = std::min(b, d);
+      if (d < t.col_best_d[j]) {
+        t.col_best_d[j] = d;
+        t.col_best[j] = i;
+      }
+    }
+    t.row_best[i] = b_j;
+    t.row_best_d[i] = b;
+    t.row_second_d[i] = s;
+  }
+}
+
 struct Avx512CandidatePass {
   __attribute__((always_inline)) void operator()(const BriefDescriptor& a, int i, int* inside, int n,
                                                  const BriefDescriptor* descriptors, int* col_best,
@@ -436,7 +504,11 @@ BruteForceKernel bruteForceKernelFor(InstructionSet isa) {
 #endif
       return nullptr;
     case InstructionSet::kAvx2:
+      return nullptr;
     case InstructionSet::kAvx512:
+#if defined(__x86_64__) && defined(__GNUC__)
+      if (cpu_features::hasAvx512Popcnt()) return bruteForceAvx512;
+#endif
       return nullptr;
   }
   return nullptr;
@@ -465,8 +537,10 @@ GuidedKernel guidedKernelFor(InstructionSet isa) {
 // __builtin_popcountll without any flag: the portable kernels are the fast ones there.
 BruteForceKernel selectBruteForceKernel() {
   static const BruteForceKernel kernel = [] {
-    const BruteForceKernel popcnt = bruteForceKernelFor(InstructionSet::kPopcnt);
-    return popcnt ? popcnt : bruteForcePortable;
+    for (InstructionSet isa : {InstructionSet::kAvx512, InstructionSet::kPopcnt}) {
+      if (const BruteForceKernel k = bruteForceKernelFor(isa)) return k;
+    }
+    return static_cast<BruteForceKernel>(bruteForcePortable);
   }();
   return kernel;
 }

@@ -79,7 +79,7 @@ enum class InstructionSet {
   kPortable,  ///< plain C++ (any CPU; on aarch64 its population count is the vector cnt)
   kPopcnt,    ///< x86-64 with the popcnt instruction
   kAvx2,      ///< popcnt plus AVX2: guided kernel's position test eight points at a time
-  /// AVX-512 with VPOPCNTDQ: the guided kernel's distances and bookkeeping eight candidates at a time
+  /// AVX-512 with VPOPCNTDQ: both kernels' distances and bookkeeping eight candidates at a time
   kAvx512,
 };
 
