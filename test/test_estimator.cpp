@@ -495,6 +495,9 @@ TEST(VoteMethod, ForwardTranslationWithNearStructure) {
     EXPECT_LT(error, (far < 100 ? 0.1 : 0.03) * kDeg) << "points 3.." << far << " m";
     if (far > 100) EXPECT_LT(error, 4.0 * predicted_sigma) << "covariance too optimistic";
     EXPECT_FALSE(r.pure_rotation);
+    // The translation direction comes with the rotation (up to sign), the next prior's.
+    EXPECT_NEAR(r.translation.norm(), 1.0, 1e-9);
+    EXPECT_GT(std::abs(r.translation.dot(t.normalized())), std::cos(5.0 * kDeg)) << r.translation.transpose();
   }
 }
 
@@ -685,9 +688,15 @@ TEST(PriorTracker, RescalesToTheIntervalAndForgetsAfterAnInvalidEstimate) {
   const vg::RotationPrior half = tracker.priorFor(0.05);
   ASSERT_TRUE(half.valid);
   EXPECT_TRUE(half.rotation_vector.isApprox(Vector3d(0.0, 0.01, 0.0)));
+  // The translation is a direction: the interval does not scale it.
+  r.translation = Vector3d(0.6, 0.0, 0.8);
+  tracker.update(r, 0.1);
+  EXPECT_TRUE(tracker.priorFor(0.05).translation.isApprox(Vector3d(0.6, 0.0, 0.8)));
   r.invalidate(vg::FrameStatus::kTooFewInliers, "test");
+  EXPECT_TRUE(r.translation.isZero()) << "an invalid result carries no translation";
   tracker.update(r, 0.1);
   EXPECT_FALSE(tracker.priorFor(0.1).valid);
+  EXPECT_TRUE(tracker.priorFor(0.1).translation.isZero());
   r.status = vg::FrameStatus::kValid;
   tracker.update(r, 0.1);
   tracker.reset();

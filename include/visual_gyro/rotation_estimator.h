@@ -136,13 +136,18 @@ struct VoteDiagnostics {
   bool prior_used = false;  ///< the narrow vote window was centred on a prior
   bool wide_vote = false;   ///< the wide (prior-free) vote ran as well
   /// Where the winning candidate came from: "narrow" or "wide" (a vote cell), "prior" (the prior
-  /// itself) or "identity"; "" when none was verified.
+  /// itself), "identity", or "previous_motion" (the refinement started from the prior rotation and
+  /// the previous frame's translation direction); "" when none was verified.
   std::string winner_source;
   int candidates_verified = 0;  ///< candidate rotations checked against all matches
   /// The rotation/translation valley of a close scene was searched (general motion with a
   /// lateral translation), and its search replaced the winner.
   bool valley_searched = false;
   bool valley_moved = false;
+  /// A refinement also started from the previous frame's motion (its rotation as the prior, its
+  /// translation direction), and that refinement won.
+  bool previous_motion_refined = false;
+  bool previous_motion_won = false;
   int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
   int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation
   /// Refined inliers of the best losing candidate; -1 when only the winner was refined.
@@ -175,6 +180,10 @@ struct RotationResult {
   double roll = 0.0;   ///< about camera +z (forward) [rad]
   /// Covariance of the rotation vector [rad^2], camera frame.
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  /// Vote method: unit direction of the camera's translation in the previous camera frame, up to
+  /// sign (the epipolar constraint does not fix it); zero for a pure rotation, an invalid result
+  /// and the other methods.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   int matches_used = 0;          ///< matches given to the estimator
   int hypotheses_drawn = 0;      ///< triples drawn
   int hypotheses_accepted = 0;   ///< triples that voted (non-degenerate, inside the window)
@@ -190,6 +199,10 @@ struct RotationResult {
 struct RotationPrior {
   bool valid = false;
   Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();  ///< [rad]
+  /// The previous frame's unit translation direction (RotationResult::translation); zero when
+  /// unknown. Translation directions change little between frames, so it starts one more
+  /// refinement of the vote method near structure.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 };
 
 /// Remembers the last valid rotation and offers it as the next frame's prior, rescaled to the new

@@ -43,6 +43,9 @@ constexpr double kValleyInlierRatio = 0.85;
 // to it, as the winner is at its refined one, or the winner's tighter translation alone would make
 // it look better than a step in the right basin.
 constexpr int kValleyRefits = 3;
+// A winner whose translation lies within this angle [deg] of the previous frame's (as lines) skips
+// the refinement from the previous motion: it would converge to the winner again.
+constexpr double kSameTranslationDeg = 10.0;
 
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -139,6 +142,7 @@ void RotationResult::invalidate(FrameStatus why, const std::string& details) {
   rotation.setIdentity();
   quaternion.setIdentity();
   rotation_vector.setZero();
+  translation.setZero();
   yaw = pitch = roll = 0.0;
   covariance.setIdentity();
 }
@@ -231,6 +235,7 @@ RotationPrior PriorTracker::priorFor(double dt) const {
 void PriorTracker::update(const RotationResult& result, double dt) {
   last_.valid = result.valid();
   last_.rotation_vector = result.valid() ? result.rotation_vector : Eigen::Vector3d::Zero();
+  last_.translation = result.valid() ? result.translation : Eigen::Vector3d::Zero();
   last_dt_ = dt;
 }
 
@@ -574,6 +579,32 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
     }
   }
+  // The previous frame's motion, as a start of its own. Near structure a wrong rotation with a
+  // wrong translation (forward instead of sideways, say) can explain the matches almost as well as
+  // the right pair, and every voted candidate, each refined from the translation its verification
+  // sampled, may start in that wrong basin; translation directions change little from frame to
+  // frame, so the previous one, with the prior rotation, usually starts in the right basin. Not
+  // needed when the winner already moves along (or against) that direction: it would converge to
+  // the winner again (under forward driving, every frame).
+  if (prior_usable && prior.translation.allFinite() && prior.translation.norm() > 0.5) {
+    const Eigen::Vector3d previous_direction = prior.translation.normalized();
+    const bool same_direction = !refined.pure_rotation && !refined.translation.isZero() &&
+                                std::abs(refined.translation.normalized().dot(previous_direction)) >
+                                    std::cos(kSameTranslationDeg * kDeg);
+    if (!same_direction) {
+      const RefinedRotation r = refineMotion(matches, so3Exp(prior.rotation_vector), previous_direction,
+                                             threshold, settings_.refine_iterations);
+      diagnostics.previous_motion_refined = true;
+      contenders.push_back(r);
+      if (explainsBetter(r, refined)) {
+        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
+        refined = r;
+        diagnostics.previous_motion_won = true;
+      } else {
+        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
+      }
+    }
+  }
   // Local optimisation: the refined rotation is better than the voted one, so the translation
   // search on it finds a better epipole and more inliers; repeat while the inlier set grows. Before
   // the valley search: a winner refined as a pure rotation (a translation that explained few more
@@ -673,9 +704,10 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       }
     }
   }
-  diagnostics.winner_source = winner->source;
+  diagnostics.winner_source = diagnostics.previous_motion_won ? "previous_motion" : winner->source;
   const VerifiedRotation& best = winner->rotation;
   fillAngles(refined.rotation, &result);
+  result.translation = refined.pure_rotation ? Eigen::Vector3d::Zero() : refined.translation;
   result.covariance = honestCovariance(matches, refined, contenders, threshold, refined_positions_,
                                        &diagnostics.effective_matches);
   for (int k = 0; k < 3; ++k)

@@ -647,6 +647,11 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
   return refineGeneral(matches, start.rotation, start.translation, threshold, iterations, warm);
 }
 
+RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotation,
+                             const Eigen::Vector3d& translation, double threshold, int iterations) {
+  return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations, false);
+}
+
 double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
                              double threshold) {
   rotateAll(m, rotation);

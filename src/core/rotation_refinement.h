@@ -130,6 +130,12 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& start, double threshold,
                                int iterations, bool warm = false);
 
+/// Refines `rotation` and the unit `translation` jointly as a general motion (refineRotation's
+/// epipolar refinement, without its model selection): for a start that comes from elsewhere than
+/// a verification, such as the previous frame's translation direction.
+RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotation,
+                             const Eigen::Vector3d& translation, double threshold, int iterations);
+
 /// Fewest inliers a jackknife group holds (the groups per axis shrink until each has this many).
 constexpr int kMinJackknifeGroupSize = 10;
 

@@ -49,6 +49,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     accuracy.add(e.valid, row.errors, p.truth);
     row.inliers = e.inliers;
     row.pure_rotation = e.pure_rotation;
+    row.translation = e.translation;
     row.diagnostics = e.diagnostics;
     row.error = e.error;
     if (e.has_covariance) {
@@ -169,7 +170,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
   f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
        "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
        "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,err_x_deg,err_y_deg,"
-       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,error\n";
+       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,error\n";
   auto num = [](double v) -> std::string {
     if (!std::isfinite(v)) return "";
     char buf[32];
@@ -192,6 +193,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
         << num(r.diagnostics.effective_matches);
       for (int k = 0; k < 3; ++k) f << ',' << num(e.error_vector_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
+      for (int k = 0; k < 3; ++k) f << ',' << num(r.translation[k]);
       f << ",\"" << r.error << "\"\n";
     }
   }

@@ -25,6 +25,7 @@ struct FrameRow {
   Eigen::Vector3d sigma_axes_deg = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   int inliers = -1;
   bool pure_rotation = false;
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();  ///< MethodEstimate::translation
   VoteDiagnostics diagnostics;
   std::string error;
 };

@@ -38,6 +38,7 @@ class OwnEstimatorRunner : public MethodRunner {
     if (!out.valid) out.error = std::string(frameStatusName(r.status)) + ": " + r.reason;
     out.inliers = r.inliers;
     out.pure_rotation = r.pure_rotation;
+    out.translation = r.translation;
     out.diagnostics = r.diagnostics;
     if (out.valid) {
       out.rotation = r.rotation;

@@ -30,6 +30,9 @@ struct MethodEstimate {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   int inliers = -1;  ///< vote / paper: RotationResult::inliers; -1 for the baselines
   bool pure_rotation = false;
+  /// vote: RotationResult::translation (unit, previous camera frame; zero for a pure rotation or
+  /// an invalid estimate); zero for the other methods.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   VoteDiagnostics diagnostics;  ///< vote only
   // vote / paper only (NaN for the baselines): the estimate's voter part (host clock), its GPU
   // kernels (NaN on the CPU backend), and the host part after the vote (see EstimateTimes).
