@@ -36,7 +36,7 @@ start_all=${SECONDS}
 echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
 
 # run_eval <group> <label> <x> <folder> [evaluate options...]: appends the JSON lines, tagged with
-# the benchmark group (shared, rendered, outliers, translation, motion, front_end), a label and an x value.
+# the benchmark group (shared, rendered, outliers, translation, motion, textures, front_end), a label and an x value.
 # REPEAT=N runs evaluate N times and keeps, per method, the run with the shortest front end
 # (every stage before the estimate): the figures are the same in every run, the times the least
 # disturbed.
@@ -113,7 +113,18 @@ if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
   done
 fi
 
-# 4b. Front ends on the same frames, vote only: the native front end with guided matching (the
+# 4b. Near structure over other textures: drone_near's motion rendered with other texture seeds
+#     (other matches, other basins of the rotation/translation valley), vote and the 5-point method.
+for texture in 1 2 3 4 5 6 8 9; do
+  dir="${OUT}/rendered/drone_near_texture${texture}"
+  rm -rf "${dir}"
+  "${RENDER}" --preset drone_near --frames "${RENDER_FRAMES}" --seed "${texture}" --out "${dir}" \
+      >"${OUT}/logs/render_drone_near_texture${texture}.log" 2>&1 ||
+    { echo "[bench] render_sequence drone_near --seed ${texture} failed" >&2; continue; }
+  run_eval textures "drone_near_texture${texture}" "${texture}" "${dir}" --method vote,essential5
+done
+
+# 4c. Front ends on the same frames, vote only: the native front end with guided matching (the
 #     defaults, sub-pixel positions with tracking; sub-pixel positions alone; integer positions) and
 #     with global matching, the fixed-threshold global front end with integer positions it replaced
 #     (min_fast_threshold = fast_threshold, subpixel_refinement = track_unmatched = false),
@@ -147,7 +158,7 @@ for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake dim_blu
   run_eval front_end "${name}:klt" 0 "${folder}" --method vote --front-end klt
 done
 
-# 4c. Native against KLT over estimator seeds, frame by frame, where the two are closest: the
+# 4d. Native against KLT over estimator seeds, frame by frame, where the two are closest: the
 #     shaken drone and the dim room (one seed's RMSE moves by a tenth either way there).
 seed_args=()
 [[ -d ${DATA_DIR}/euroc_mh01_shake ]] && seed_args+=("euroc_mh01_shake=${DATA_DIR}/euroc_mh01_shake")
