@@ -144,9 +144,8 @@ struct VoteDiagnostics {
   /// lateral translation), and its search replaced the winner.
   bool valley_searched = false;
   bool valley_moved = false;
-  /// A refinement also started from the previous frame's motion (its rotation as the prior, its
-  /// translation direction), and that refinement won.
-  bool previous_motion_refined = false;
+  /// The refinement started from the previous frame's motion (the prior rotation and the previous
+  /// translation direction) won.
   bool previous_motion_won = false;
   int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
   int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation

@@ -594,7 +594,6 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     if (!same_direction) {
       const RefinedRotation r = refineMotion(matches, so3Exp(prior.rotation_vector), previous_direction,
                                              threshold, settings_.refine_iterations);
-      diagnostics.previous_motion_refined = true;
       contenders.push_back(r);
       if (explainsBetter(r, refined)) {
         diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
