@@ -579,6 +579,15 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
     }
   }
+  // A later refinement challenges the winner: it joins the contenders (the covariance's spread) and
+  // replaces the winner when it explains the matches better. True when it did.
+  const auto challenge = [&](const RefinedRotation& r) {
+    contenders.push_back(r);
+    const bool wins = explainsBetter(r, refined);
+    diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, wins ? refined.inliers : r.inliers);
+    if (wins) refined = r;
+    return wins;
+  };
   // The previous frame's motion, as a start of its own. Near structure a wrong rotation with a
   // wrong translation (forward instead of sideways, say) can explain the matches almost as well as
   // the right pair, and every voted candidate, each refined from the translation its verification
@@ -592,16 +601,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
                                 std::abs(refined.translation.normalized().dot(previous_direction)) >
                                     std::cos(kSameTranslationDeg * kDeg);
     if (!same_direction) {
-      const RefinedRotation r = refineMotion(matches, so3Exp(prior.rotation_vector), previous_direction,
-                                             threshold, settings_.refine_iterations);
-      contenders.push_back(r);
-      if (explainsBetter(r, refined)) {
-        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
-        refined = r;
-        diagnostics.previous_motion_won = true;
-      } else {
-        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
-      }
+      diagnostics.previous_motion_won = challenge(refineMotion(
+          matches, so3Exp(prior.rotation_vector), previous_direction, threshold, settings_.refine_iterations));
     }
   }
   // Local optimisation: the refined rotation is better than the voted one, so the translation
@@ -692,15 +693,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       if (vertex > x0 && vertex < x2 && vertex != x1) tryStep(axis, vertex);
     }
     if (stepped) {
-      const RefinedRotation r = refineRotation(matches, best_step, threshold, settings_.refine_iterations);
-      contenders.push_back(r);
-      if (explainsBetter(r, refined)) {
-        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, refined.inliers);
-        refined = r;
-        diagnostics.valley_moved = true;
-      } else {
-        diagnostics.runner_up_inliers = std::max(diagnostics.runner_up_inliers, r.inliers);
-      }
+      diagnostics.valley_moved =
+          challenge(refineRotation(matches, best_step, threshold, settings_.refine_iterations));
     }
   }
   diagnostics.winner_source = diagnostics.previous_motion_won ? "previous_motion" : winner->source;
