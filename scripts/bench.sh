@@ -31,7 +31,7 @@ METHODS="$("${EVAL}" --list-methods)"
 mkdir -p "${OUT}/logs" "${OUT}/rendered"
 RESULTS="${OUT}/results.jsonl"
 : >"${RESULTS}"
-rm -f "${OUT}"/sweep_*.csv
+rm -f "${OUT}"/sweep_*.csv "${OUT}/front_end_seeds.md" "${OUT}/motion_seeds.md"
 start_all=${SECONDS}
 echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
 
@@ -171,6 +171,16 @@ if ((${#seed_args[@]} > 0)); then
   echo "[bench] front ends over seeds in $((SECONDS - t0)) s"
 fi
 
+# 4e. The shaken drone's strides over estimator seeds: with pairs three or four frames apart one
+#     seed's figures are one draw among widely spread ones.
+if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
+  t0=${SECONDS}
+  "${PY}" "${REPO_DIR}/scripts/motion_seeds.py" --evaluate "${EVAL}" --out "${OUT}/motion_seeds.md" \
+    "${DATA_DIR}/euroc_mh01_shake" >"${OUT}/logs/motion_seeds.log" 2>&1 ||
+    { echo "[bench] motion_seeds failed; see ${OUT}/logs/motion_seeds.log" >&2; }
+  echo "[bench] strides over seeds in $((SECONDS - t0)) s"
+fi
+
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over
 #    matches (250..8 000 at 10 000 hypotheses), on the same real matches: kitti_turn with a denser
 #    front end (FAST threshold 8, up to 16 000 corners: ~3 400 matches a pair; beyond that the
@@ -205,4 +215,5 @@ echo
 cat "${OUT}/table.md"
 echo
 [[ -f ${OUT}/front_end_seeds.md ]] && { cat "${OUT}/front_end_seeds.md"; echo; }
+[[ -f ${OUT}/motion_seeds.md ]] && { cat "${OUT}/motion_seeds.md"; echo; }
 echo "[bench] machine: ${machine}; total $((SECONDS - start_all)) s; files in ${OUT}"
