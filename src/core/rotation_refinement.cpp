@@ -477,13 +477,6 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   return out;
 }
 
-/// Least-squares refit of the translation: the eigenvector of the smallest eigenvalue of
-/// sum n n^T over the inliers of `translation`, each normal scaled to its angular residual, for
-/// the normals in the scratch (those of the rotation last applied by rotateAll). The squared scale
-/// needs no square root. The weights (the squared scale of the inliers, zero for the others, which
-/// then add exact zeros) come from one vectorised pass; the sums run in index order. The
-/// eigensolver reads the lower triangle only, so only that is summed. Its sign is the
-/// eigensolver's.
 /// truncatedEpipolarCost() for the normals in the scratch (those of the rotation last applied by
 /// rotateAll), so that several translations are costed without rotating the matches again.
 double truncatedCostOfNormals(FrameMatches& m, const Eigen::Vector3d& translation, double threshold) {
@@ -497,6 +490,13 @@ double truncatedCostOfNormals(FrameMatches& m, const Eigen::Vector3d& translatio
   return cost;
 }
 
+/// Least-squares refit of the translation: the eigenvector of the smallest eigenvalue of
+/// sum n n^T over the inliers of `translation`, each normal scaled to its angular residual, for
+/// the normals in the scratch (those of the rotation last applied by rotateAll). The squared scale
+/// needs no square root. The weights (the squared scale of the inliers, zero for the others, which
+/// then add exact zeros) come from one vectorised pass; the sums run in index order. The
+/// eigensolver reads the lower triangle only, so only that is summed. Its sign is the
+/// eigensolver's.
 Eigen::Vector3d refitTranslation(FrameMatches& m, const Eigen::Vector3d& translation, double threshold) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
