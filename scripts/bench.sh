@@ -31,7 +31,7 @@ METHODS="$("${EVAL}" --list-methods)"
 mkdir -p "${OUT}/logs" "${OUT}/rendered"
 RESULTS="${OUT}/results.jsonl"
 : >"${RESULTS}"
-rm -f "${OUT}"/sweep_*.csv "${OUT}/front_end_seeds.md" "${OUT}/motion_seeds.md"
+rm -f "${OUT}"/sweep_*.csv "${OUT}/front_end_seeds.md" "${OUT}"/motion_seeds*.md
 start_all=${SECONDS}
 echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
 
@@ -171,7 +171,7 @@ if ((${#seed_args[@]} > 0)); then
   echo "[bench] front ends over seeds in $((SECONDS - t0)) s"
 fi
 
-# 4e. The shaken drone's strides over estimator seeds: with pairs three or four frames apart one
+# 4e. The shaken drone's and the rendered close scene's strides over estimator seeds: with pairs three or four frames apart one
 #     seed's figures are one draw among widely spread ones.
 if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
   t0=${SECONDS}
@@ -179,6 +179,15 @@ if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
     "${DATA_DIR}/euroc_mh01_shake" >"${OUT}/logs/motion_seeds.log" 2>&1 ||
     { echo "[bench] motion_seeds failed; see ${OUT}/logs/motion_seeds.log" >&2; }
   echo "[bench] strides over seeds in $((SECONDS - t0)) s"
+fi
+# The rendered close scene likewise (no data needed): at strides 2-4 its priors are degrees off and
+# a draw can put every candidate of a frame in one wrong basin.
+if [[ -d ${OUT}/rendered/drone_near ]]; then
+  t0=${SECONDS}
+  "${PY}" "${REPO_DIR}/scripts/motion_seeds.py" --evaluate "${EVAL}" --out "${OUT}/motion_seeds_drone_near.md" \
+    "${OUT}/rendered/drone_near" >"${OUT}/logs/motion_seeds_drone_near.log" 2>&1 ||
+    { echo "[bench] motion_seeds (drone_near) failed; see ${OUT}/logs/motion_seeds_drone_near.log" >&2; }
+  echo "[bench] drone_near strides over seeds in $((SECONDS - t0)) s"
 fi
 
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over
@@ -216,4 +225,5 @@ cat "${OUT}/table.md"
 echo
 [[ -f ${OUT}/front_end_seeds.md ]] && { cat "${OUT}/front_end_seeds.md"; echo; }
 [[ -f ${OUT}/motion_seeds.md ]] && { cat "${OUT}/motion_seeds.md"; echo; }
+[[ -f ${OUT}/motion_seeds_drone_near.md ]] && { cat "${OUT}/motion_seeds_drone_near.md"; echo; }
 echo "[bench] machine: ${machine}; total $((SECONDS - start_all)) s; files in ${OUT}"
