@@ -725,7 +725,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // from the winner's rotation with each of a few translation directions that cover the lines
   // through the camera, and each competes. Last, after the valley search: a winner the valley moved
   // into the right basin explains most matches and needs none of this. Frames whose matches are
-  // mostly explained (forward driving, every frame of a well-matched sequence) never run it.
+  // mostly explained (every frame of a well-matched sequence) never run it; with many wrong
+  // matches it runs on most frames, and there finds the translation that the verification's
+  // samples, drawn among the wrong matches, missed.
   if (refined.inliers < kRestartInlierFraction * static_cast<double>(n)) {
     const Eigen::Matrix3d start = refined.rotation;
     for (const Eigen::Vector3d& direction : restartDirections()) {
