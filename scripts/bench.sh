@@ -171,24 +171,20 @@ if ((${#seed_args[@]} > 0)); then
   echo "[bench] front ends over seeds in $((SECONDS - t0)) s"
 fi
 
-# 4e. The shaken drone's and the rendered close scene's strides over estimator seeds: with pairs three or four frames apart one
-#     seed's figures are one draw among widely spread ones.
-if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
+# 4e. Strides over estimator seeds: with pairs three or four frames apart one seed's figures are one
+#     draw among widely spread ones. The shaken drone (when the data is there) and the rendered close
+#     scene, whose priors are degrees off at strides 2-4, where a draw can put every candidate of a
+#     frame in one wrong basin. Each is written to motion_seeds<suffix>.md.
+for spec in "=${DATA_DIR}/euroc_mh01_shake" "_drone_near=${OUT}/rendered/drone_near"; do
+  suffix=${spec%%=*}
+  folder=${spec#*=}
+  [[ -d ${folder} ]] || continue
   t0=${SECONDS}
-  "${PY}" "${REPO_DIR}/scripts/motion_seeds.py" --evaluate "${EVAL}" --out "${OUT}/motion_seeds.md" \
-    "${DATA_DIR}/euroc_mh01_shake" >"${OUT}/logs/motion_seeds.log" 2>&1 ||
-    { echo "[bench] motion_seeds failed; see ${OUT}/logs/motion_seeds.log" >&2; }
-  echo "[bench] strides over seeds in $((SECONDS - t0)) s"
-fi
-# The rendered close scene likewise (no data needed): at strides 2-4 its priors are degrees off and
-# a draw can put every candidate of a frame in one wrong basin.
-if [[ -d ${OUT}/rendered/drone_near ]]; then
-  t0=${SECONDS}
-  "${PY}" "${REPO_DIR}/scripts/motion_seeds.py" --evaluate "${EVAL}" --out "${OUT}/motion_seeds_drone_near.md" \
-    "${OUT}/rendered/drone_near" >"${OUT}/logs/motion_seeds_drone_near.log" 2>&1 ||
-    { echo "[bench] motion_seeds (drone_near) failed; see ${OUT}/logs/motion_seeds_drone_near.log" >&2; }
-  echo "[bench] drone_near strides over seeds in $((SECONDS - t0)) s"
-fi
+  "${PY}" "${REPO_DIR}/scripts/motion_seeds.py" --evaluate "${EVAL}" --out "${OUT}/motion_seeds${suffix}.md" \
+    "${folder}" >"${OUT}/logs/motion_seeds${suffix}.log" 2>&1 ||
+    { echo "[bench] motion_seeds failed on ${folder}; see ${OUT}/logs/motion_seeds${suffix}.log" >&2; }
+  echo "[bench] strides over seeds on $(basename "${folder}") in $((SECONDS - t0)) s"
+done
 
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over
 #    matches (250..8 000 at 10 000 hypotheses), on the same real matches: kitti_turn with a denser
