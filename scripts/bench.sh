@@ -36,7 +36,8 @@ start_all=${SECONDS}
 echo "[bench] methods: ${METHODS}; backend ${BACKEND}; results in ${OUT}"
 
 # run_eval <group> <label> <x> <folder> [evaluate options...]: appends the JSON lines, tagged with
-# the benchmark group (shared, rendered, outliers, translation, motion, textures, front_end), a label and an x value.
+# the benchmark group (shared, rendered, outliers, outliers_near, translation, motion, textures, front_end), a
+# label and an x value.
 # REPEAT=N runs evaluate N times and keeps, per method, the run with the shortest front end
 # (every stage before the estimate): the figures are the same in every run, the times the least
 # disturbed.
@@ -93,6 +94,14 @@ done
 if [[ -f ${OUT}/rendered/drive/poses.txt ]]; then
   for f in 0.2 0.4 0.5 0.6 0.7; do
     run_eval outliers "drive_out${f}" "${f}" "${OUT}/rendered/drive" --outliers "${f}"
+  done
+fi
+
+# 3b. Wrong pairings near structure: euroc_mh01_shake at the camera's rate, where every wrong
+#     basin of the rotation/translation valley is close to the right one.
+if [[ -d ${DATA_DIR}/euroc_mh01_shake ]]; then
+  for f in 0.5 0.7; do
+    run_eval outliers_near "mh01_out${f}" "${f}" "${DATA_DIR}/euroc_mh01_shake" --outliers "${f}"
   done
 fi
 

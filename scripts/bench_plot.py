@@ -5,7 +5,7 @@ results.csv, table.md and PNG plots. Run by scripts/bench.sh with Debian's pytho
 
 Inputs:
   --results  results.jsonl: evaluate's JSON objects plus group (shared, rendered, outliers,
-             translation, motion, textures, front_end), label and x (outlier fraction, frame stride
+             outliers_near, translation, motion, textures, front_end), label and x (outlier fraction, frame stride
              or texture seed) added by
              bench.sh
   --sweep    CSVs of `evaluate --timing-sweep` (series, method, backend, hypotheses, matches,

@@ -51,6 +51,10 @@ constexpr double kSameTranslationDeg = 10.0;
 // one wrong basin; above it, frames where the right motion already explains nearly every correct
 // match (on the rendered close scene the right motion explains 94-97 % of the matches).
 constexpr double kRestartInlierFraction = 0.8;
+// Refined contenders whose rotations the restarts also start from, and how far [deg] a start must
+// lie from every other start (nearer ones converge alike).
+constexpr size_t kRestartContenders = 2;
+constexpr double kRestartSeparationDeg = 0.3;
 
 // Translation starts of those restarts: unit directions in the camera frame (z forward), one per
 // line through the camera, since a translation is only known up to sign: forward, the two image
@@ -729,10 +733,28 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // matches it runs on most frames, and there finds the translation that the verification's
   // samples, drawn among the wrong matches, missed.
   if (refined.inliers < kRestartInlierFraction * static_cast<double>(n)) {
-    const Eigen::Matrix3d start = refined.rotation;
-    for (const Eigen::Vector3d& direction : restartDirections()) {
-      if (challenge(refineMotion(matches, start, direction, threshold, settings_.refine_iterations)))
-        diagnostics.restart_won = true;
+    // Besides the winner's rotation, the rotations of the refined contenders with the most inliers
+    // that lie elsewhere: with many wrong matches near structure the winner can be a wrong basin
+    // a degree or two from the right rotation, too far for any translation to bring the right
+    // matches within the gate, while a contender sits in the right basin and lost only through
+    // its translation.
+    std::vector<Eigen::Matrix3d> starts{refined.rotation};
+    std::vector<const RefinedRotation*> ranked;
+    for (const RefinedRotation& c : contenders) ranked.push_back(&c);
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const RefinedRotation* a, const RefinedRotation* b) { return a->inliers > b->inliers; });
+    for (const RefinedRotation* c : ranked) {
+      if (starts.size() == 1 + kRestartContenders) break;
+      const bool elsewhere = std::all_of(starts.begin(), starts.end(), [&](const Eigen::Matrix3d& s) {
+        return rotationAngleBetween(s, c->rotation) >= kRestartSeparationDeg * kDeg;
+      });
+      if (elsewhere) starts.push_back(c->rotation);
+    }
+    for (const Eigen::Matrix3d& start : starts) {
+      for (const Eigen::Vector3d& direction : restartDirections()) {
+        if (challenge(refineMotion(matches, start, direction, threshold, settings_.refine_iterations)))
+          diagnostics.restart_won = true;
+      }
     }
   }
   diagnostics.winner_source = diagnostics.restart_won           ? "restart"
