@@ -738,21 +738,24 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     // a degree or two from the right rotation, too far for any translation to bring the right
     // matches within the gate, while a contender sits in the right basin and lost only through
     // its translation.
-    std::vector<Eigen::Matrix3d> starts{refined.rotation};
-    std::vector<const RefinedRotation*> ranked;
-    for (const RefinedRotation& c : contenders) ranked.push_back(&c);
-    std::stable_sort(ranked.begin(), ranked.end(),
-                     [](const RefinedRotation* a, const RefinedRotation* b) { return a->inliers > b->inliers; });
-    for (const RefinedRotation* c : ranked) {
-      if (starts.size() == 1 + kRestartContenders) break;
-      const bool elsewhere = std::all_of(starts.begin(), starts.end(), [&](const Eigen::Matrix3d& s) {
-        return rotationAngleBetween(s, c->rotation) >= kRestartSeparationDeg * kDeg;
-      });
-      if (elsewhere) starts.push_back(c->rotation);
+    std::array<Eigen::Matrix3d, 1 + kRestartContenders> starts;
+    starts[0] = refined.rotation;
+    size_t start_count = 1;
+    const auto elsewhere = [&](const Eigen::Matrix3d& rotation) {
+      for (size_t k = 0; k < start_count; ++k)
+        if (rotationAngleBetween(starts[k], rotation) < kRestartSeparationDeg * kDeg) return false;
+      return true;
+    };
+    while (start_count < starts.size()) {
+      const RefinedRotation* best = nullptr;
+      for (const RefinedRotation& c : contenders)
+        if ((best == nullptr || c.inliers > best->inliers) && elsewhere(c.rotation)) best = &c;
+      if (best == nullptr) break;
+      starts[start_count++] = best->rotation;
     }
-    for (const Eigen::Matrix3d& start : starts) {
+    for (size_t k = 0; k < start_count; ++k) {
       for (const Eigen::Vector3d& direction : restartDirections()) {
-        if (challenge(refineMotion(matches, start, direction, threshold, settings_.refine_iterations)))
+        if (challenge(refineMotion(matches, starts[k], direction, threshold, settings_.refine_iterations)))
           diagnostics.restart_won = true;
       }
     }
