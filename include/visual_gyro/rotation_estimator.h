@@ -137,9 +137,10 @@ struct VoteDiagnostics {
   bool wide_vote = false;   ///< the wide (prior-free) vote ran as well
   /// Where the winning candidate came from: "narrow" or "wide" (a vote cell), "prior" (the prior
   /// itself), "identity", "previous_motion" (the refinement started from the prior rotation and
-  /// the previous frame's translation direction), or "restart" (a refinement restarted from the
-  /// winner's rotation with another translation direction, when the winner explained too few
-  /// matches); "" when none was verified.
+  /// the previous frame's translation direction), "restart" (a refinement restarted from the
+  /// winner's or a contender's rotation with another translation direction, when the winner
+  /// explained too few matches), or "descent" (a refinement from the end of a descent on the
+  /// truncated cost, under the same condition); "" when none was verified.
   std::string winner_source;
   int candidates_verified = 0;  ///< candidate rotations checked against all matches
   /// The rotation/translation valley of a close scene was searched (general motion with a
@@ -149,9 +150,12 @@ struct VoteDiagnostics {
   /// The refinement started from the previous frame's motion (the prior rotation and the previous
   /// translation direction) won.
   bool previous_motion_won = false;
-  /// A refinement restarted from the winner's rotation with another translation direction (run
-  /// when the winner explained too few of the matches) won.
+  /// A refinement restarted from the winner's or a contender's rotation with another translation
+  /// direction (run when the winner explained too few of the matches) won.
   bool restart_won = false;
+  /// The refinement from the end of the descent on the truncated cost (run after the restarts,
+  /// under the same condition) won.
+  bool descent_won = false;
   int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
   int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation
   /// Refined inliers of the best losing candidate; -1 when only the winner was refined.

@@ -55,6 +55,10 @@ constexpr double kRestartInlierFraction = 0.8;
 // lie from every other start (nearer ones converge alike).
 constexpr size_t kRestartContenders = 2;
 constexpr double kRestartSeparationDeg = 0.3;
+// The descent on the truncated cost after the restarts: its step sizes about the camera axes [deg],
+// coarse to fine, and the most moves at each.
+constexpr std::array<double, 4> kDescentStepsDeg = {0.2, 0.1, 0.05, 0.025};
+constexpr int kDescentMovesPerStep = 20;
 
 // Translation starts of those restarts: unit directions in the camera frame (z forward), one per
 // line through the camera, since a translation is only known up to sign: forward, the two image
@@ -441,6 +445,40 @@ std::vector<Candidate> topCandidates(const VoteResult& votes, const hyp::VoteGri
 // candidates that explain the matches about as well as the winner (a close scene's
 // rotation/translation valley: two rotations a degree apart, each with its translation, that
 // differ by fewer inliers than the count's own noise), plus a floor for the unmodelled errors.
+// A descent on the truncated cost (the choice between refinements) from (rotation, translation):
+// steps of kDescentStepsDeg about each camera axis, coarse to fine, each step's translation
+// refitted, the best step taken while it lowers the cost. True when it moved.
+bool descendTruncatedCost(FrameMatches& matches, double threshold, Eigen::Matrix3d* rotation,
+                          Eigen::Vector3d* translation) {
+  double cost = fittedTranslationCost(matches, *rotation, translation, threshold, kValleyRefits);
+  bool moved = false;
+  for (const double step_deg : kDescentStepsDeg) {
+    for (int move = 0; move < kDescentMovesPerStep; ++move) {
+      double best_cost = cost;
+      Eigen::Matrix3d best_rotation = *rotation;
+      Eigen::Vector3d best_translation = *translation;
+      for (int axis = 0; axis < 3; ++axis) {
+        for (const double sign : {1.0, -1.0}) {
+          const Eigen::Matrix3d stepped = so3Exp(sign * step_deg * kDeg * Eigen::Vector3d::Unit(axis)) * *rotation;
+          Eigen::Vector3d stepped_translation = *translation;
+          const double c = fittedTranslationCost(matches, stepped, &stepped_translation, threshold, kValleyRefits);
+          if (c < best_cost) {
+            best_cost = c;
+            best_rotation = stepped;
+            best_translation = stepped_translation;
+          }
+        }
+      }
+      if (!(best_cost < cost)) break;
+      cost = best_cost;
+      *rotation = best_rotation;
+      *translation = best_translation;
+      moved = true;
+    }
+  }
+  return moved;
+}
+
 // The scale: with refined positions, the mean ratio (in the metric of the statistical covariance)
 // of the spatial jackknife's covariance to the statistical one, at least 1, since matches that
 // share an error (a patch of texture, blur) leave a jackknife group together; with integer
@@ -760,7 +798,22 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       }
     }
   }
-  diagnostics.winner_source = diagnostics.restart_won           ? "restart"
+  // A descent on the truncated cost itself, under the same condition. Every refinement minimises
+  // a Tukey cost under an adaptive gate; with many matches unexplained that cost has local minima
+  // where it stops 0.1-0.7 deg short of the truncated cost's minimum (the criterion that chooses
+  // between refinements), with the right translation already. Small steps on the truncated cost
+  // cross them; a refinement from where they end gives a stationary point, and its covariance,
+  // and competes like the others.
+  if (refined.inliers < kRestartInlierFraction * static_cast<double>(n) && !refined.pure_rotation &&
+      !refined.translation.isZero()) {
+    Eigen::Matrix3d rotation = refined.rotation;
+    Eigen::Vector3d translation = refined.translation;
+    if (descendTruncatedCost(matches, threshold, &rotation, &translation))
+      diagnostics.descent_won =
+          challenge(refineMotion(matches, rotation, translation, threshold, settings_.refine_iterations));
+  }
+  diagnostics.winner_source = diagnostics.descent_won           ? "descent"
+                               : diagnostics.restart_won         ? "restart"
                                : diagnostics.previous_motion_won ? "previous_motion"
                                                                  : winner->source;
   const VerifiedRotation& best = winner->rotation;
