@@ -440,11 +440,6 @@ std::vector<Candidate> topCandidates(const VoteResult& votes, const hyp::VoteGri
   return out;
 }
 
-// The covariance a fusion filter can weight by: the refinement's sigma^2 (J^T W J)^-1 scaled up
-// by how far the matches' errors are from independent, plus the spread of the competing refined
-// candidates that explain the matches about as well as the winner (a close scene's
-// rotation/translation valley: two rotations a degree apart, each with its translation, that
-// differ by fewer inliers than the count's own noise), plus a floor for the unmodelled errors.
 // A descent on the truncated cost (the choice between refinements) from (rotation, translation):
 // steps of kDescentStepsDeg about each camera axis, coarse to fine, each step's translation
 // refitted, the best step taken while it lowers the cost. True when it moved.
@@ -479,6 +474,11 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, Eigen::Matrix
   return moved;
 }
 
+// The covariance a fusion filter can weight by: the refinement's sigma^2 (J^T W J)^-1 scaled up
+// by how far the matches' errors are from independent, plus the spread of the competing refined
+// candidates that explain the matches about as well as the winner (a close scene's
+// rotation/translation valley: two rotations a degree apart, each with its translation, that
+// differ by fewer inliers than the count's own noise), plus a floor for the unmodelled errors.
 // The scale: with refined positions, the mean ratio (in the metric of the statistical covariance)
 // of the spatial jackknife's covariance to the statistical one, at least 1, since matches that
 // share an error (a patch of texture, blur) leave a jackknife group together; with integer
