@@ -5,9 +5,8 @@ results.csv, table.md and PNG plots. Run by scripts/bench.sh with Debian's pytho
 
 Inputs:
   --results  results.jsonl: evaluate's JSON objects plus group (shared, rendered, outliers,
-             outliers_near, translation, motion, textures, front_end), label and x (outlier fraction, frame stride
-             or texture seed) added by
-             bench.sh
+             outliers_near, translation, motion, textures, front_end), label and x (outlier
+             fraction, frame stride or texture seed) added by bench.sh
   --sweep    CSVs of `evaluate --timing-sweep` (series, method, backend, hypotheses, matches,
              real_fraction, ms_mean, ...), one per backend
   --gpu-dir  folder of CSVs from the GPU stand-alone bench; any with a `hypotheses` column and a

@@ -146,7 +146,7 @@ TEST(EurocShake, VoteBeatsFivePointWithoutLockIn) {
 
 // Half the matches wrong, near structure, at half the camera's rate (2-5 deg per pair). The winner
 // of one frame sat 2.1 deg from the truth, in another basin with another translation, where the
-// truth with a fitted translation explained 669 matches against its 546: the restarts from the
+// truth with a fitted translation explained 669 matches against its 545: the restarts from the
 // winner's rotation could not reach it, those from the contenders' rotations do (RMSE 0.32 ->
 // 0.12 deg, worst frame 2.07 -> 0.67 deg). Other frames' refinements stopped 0.1-0.7 deg short
 // of the truncated cost's minimum under a tight covariance (NEES 10.1) until the descent on that

@@ -770,7 +770,11 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // mostly explained (every frame of a well-matched sequence) never run it; with many wrong
   // matches it runs on most frames, and there finds the translation that the verification's
   // samples, drawn among the wrong matches, missed.
-  if (refined.inliers < kRestartInlierFraction * static_cast<double>(n)) {
+  // Asked again before the descent: a restart may have replaced the winner.
+  const auto explainsTooFew = [&] {
+    return refined.inliers < kRestartInlierFraction * static_cast<double>(n);
+  };
+  if (explainsTooFew()) {
     // Besides the winner's rotation, the rotations of the refined contenders with the most inliers
     // that lie elsewhere: with many wrong matches near structure the winner can be a wrong basin
     // a degree or two from the right rotation, too far for any translation to bring the right
@@ -804,8 +808,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // between refinements), with the right translation already. Small steps on the truncated cost
   // cross them; a refinement from where they end gives a stationary point, and its covariance,
   // and competes like the others.
-  if (refined.inliers < kRestartInlierFraction * static_cast<double>(n) && !refined.pure_rotation &&
-      !refined.translation.isZero()) {
+  if (explainsTooFew() && !refined.pure_rotation && !refined.translation.isZero()) {
     Eigen::Matrix3d rotation = refined.rotation;
     Eigen::Vector3d translation = refined.translation;
     if (descendTruncatedCost(matches, threshold, &rotation, &translation))
