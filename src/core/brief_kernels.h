@@ -44,7 +44,12 @@ enum class KernelSet {
 /// portable kernel's bits; the tests compare each with it.
 TestKernel kernelFor(KernelSet set);
 
-/// The fastest kernel this build and CPU run (chosen once).
+/// Whichever of two kernels describes a few hundred corners of a noise image in less time on this
+/// CPU (`first` on a tie). Takes about a millisecond; allocates.
+TestKernel fasterKernel(TestKernel first, TestKernel second);
+
+/// The fastest kernel this build and CPU run, chosen once: the permute kernel where the CPU has
+/// it, else the faster of the gather and the portable kernel as fasterKernel measures them.
 TestKernel selectKernel();
 
 }  // namespace brief_kernels
