@@ -232,6 +232,63 @@ TEST(Renderer, BadSettingsThrowInvalidArgument) {
                std::invalid_argument);
 }
 
+TEST(ImageDegradation, EachDegradationDoesWhatItSays) {
+  cv::Mat image(120, 160, CV_8UC1);
+  cv::RNG(3).fill(image, cv::RNG::UNIFORM, 40, 216);
+  cv::Scalar mean, deviation;
+  cv::meanStdDev(image, mean, deviation);
+
+  ImageDegradation none;
+  EXPECT_FALSE(none.any());
+  const cv::Mat same = degradeImage(image, none, 1);
+  EXPECT_EQ(cv::norm(same, image, cv::NORM_INF), 0.0);
+
+  // Contrast: the spread about the mean scales, the mean stays (within rounding).
+  ImageDegradation dimmer;
+  dimmer.contrast = 0.1;
+  EXPECT_TRUE(dimmer.any());
+  cv::Scalar dim_mean, dim_deviation;
+  cv::meanStdDev(degradeImage(image, dimmer, 1), dim_mean, dim_deviation);
+  EXPECT_NEAR(dim_mean[0], mean[0], 0.6);
+  EXPECT_NEAR(dim_deviation[0], 0.1 * deviation[0], 0.6);
+
+  // Noise: the difference from the image has the stated sigma and no offset; the same seed draws
+  // the same noise, another seed other noise.
+  ImageDegradation noisy;
+  noisy.noise_sigma = 3.0;
+  const cv::Mat a = degradeImage(image, noisy, 5), b = degradeImage(image, noisy, 5), c = degradeImage(image, noisy, 6);
+  cv::Mat difference;
+  cv::subtract(a, image, difference, cv::noArray(), CV_32F);
+  cv::Scalar noise_mean, noise_deviation;
+  cv::meanStdDev(difference, noise_mean, noise_deviation);
+  EXPECT_NEAR(noise_mean[0], 0.0, 0.1);
+  EXPECT_NEAR(noise_deviation[0], std::sqrt(9.0 + 1.0 / 12.0), 0.15);  // plus the rounding's
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_INF), 0.0);
+
+  // JPEG: a round trip at low quality changes the noise image, but keeps it close.
+  ImageDegradation compressed;
+  compressed.jpeg_quality = 20;
+  const cv::Mat jpeg = degradeImage(image, compressed, 1);
+  EXPECT_GT(cv::norm(jpeg, image, cv::NORM_INF), 0.0);
+  EXPECT_LT(cv::norm(jpeg, image, cv::NORM_L1) / image.total(), 60.0);
+
+  // The renderer's own validation is this one.
+  ImageDegradation bad;
+  bad.contrast = 0.0;
+  EXPECT_THROW(degradeImage(image, bad, 1), std::invalid_argument);
+  bad = ImageDegradation();
+  bad.jpeg_quality = 101;
+  EXPECT_THROW(checkDegradation(bad, "test"), std::invalid_argument);
+  bad = ImageDegradation();
+  bad.blur_direction = Eigen::Vector2d(1.0, 1.0);
+  EXPECT_THROW(checkDegradation(bad, "test"), std::invalid_argument);
+  EXPECT_THROW(degradeImage(cv::Mat(4, 4, CV_16UC1, cv::Scalar(0)), none, 1), std::invalid_argument);
+  RenderSettings settings;
+  settings.contrast = -1.0;
+  EXPECT_THROW(renderSequence(settings), std::invalid_argument);
+}
+
 TEST(Renderer, WriteKittiLayoutReportsErrors) {
   RenderedSequence empty;
   const std::string unused = test::makeTempDir("render_empty");

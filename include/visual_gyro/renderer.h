@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -57,6 +58,29 @@ struct RenderSettings {
     cy = (image_height - 1) / 2.0;
   }
 };
+
+/// Degradations of one image, applied in this order: contrast, motion blur, noise, JPEG. The
+/// renderer applies them to what it renders (RenderSettings' fields); the evaluation applies them
+/// to real footage (`evaluate --contrast/--noise/--jpeg`).
+struct ImageDegradation {
+  double contrast = 1.0;      ///< grey levels scaled about the image mean by this factor, in (0, 100]
+  double blur_px = 0.0;       ///< line blur this long [px] along blur_direction, in [0, 200]; 0 = none
+  Eigen::Vector2d blur_direction = Eigen::Vector2d::UnitX();  ///< image x right, y down; unit length
+  double noise_sigma = 0.0;   ///< Gaussian pixel noise [grey levels], >= 0
+  int jpeg_quality = 0;       ///< JPEG-compressed and decoded at this quality (1..100); 0 = none
+
+  /// True when at least one degradation changes an image.
+  bool any() const { return contrast != 1.0 || blur_px > 0.0 || noise_sigma > 0.0 || jpeg_quality > 0; }
+};
+
+/// Throws std::invalid_argument, its message starting with `who`, when a value of `degradation`
+/// is out of the range its field states.
+void checkDegradation(const ImageDegradation& degradation, const std::string& who);
+
+/// `image` (CV_8UC1, or CV_32FC1 grey levels) degraded by `degradation`: rounded to CV_8UC1 after
+/// the noise, whose normal draws come from `noise_seed` pixel by pixel in row order. Throws
+/// std::invalid_argument for another image type or a value out of range.
+cv::Mat degradeImage(const cv::Mat& image, const ImageDegradation& degradation, uint64_t noise_seed);
 
 /// Rendered sequence in memory.
 struct RenderedSequence {

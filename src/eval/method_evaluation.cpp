@@ -98,6 +98,12 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
       << " (invalid frames count as identity rotation in the errors)";
   if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
   if (run.stride > 1) out << ", stride " << run.stride;
+  if (run.degradation.any()) {
+    out << ", images degraded (contrast " << fmt(run.degradation.contrast, 2) << ", noise "
+        << fmt(run.degradation.noise_sigma, 1) << " grey levels";
+    if (run.degradation.jpeg_quality > 0) out << ", JPEG " << run.degradation.jpeg_quality;
+    out << ")";
+  }
   out << "\n";
   out << "   rotation error  RMSE " << fmt(a.rot_rmse_deg) << " deg, max " << fmt(a.rot_max_deg) << " deg\n";
   out << "   yaw error       RMSE " << fmt(a.yaw_rmse_deg) << " deg, max " << fmt(a.yaw_max_deg) << " deg\n";
@@ -155,6 +161,9 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("hypotheses", isOwnMethod(s.method) ? run.hypotheses : 0)
       .add("outliers", run.outliers)
       .add("stride", run.stride)
+      .add("contrast", run.degradation.contrast)
+      .add("noise", run.degradation.noise_sigma)
+      .add("jpeg", run.degradation.jpeg_quality)
       .add("true_rot_mean_deg", a.true_rotation_mean_deg)
       .add("true_trans_mean_m", s.true_translation_mean)
       .add("gyro_mean_rate_dps", a.true_rate_mean_dps)

@@ -54,6 +54,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
 struct RunDescription {
   std::string dataset, layout, truth;  ///< the sequence's name, layout and reference kind
   double outliers = 0.0;               ///< injected outlier fraction
+  ImageDegradation degradation;        ///< applied to the images before the front end
   int stride = 1;
   int hypotheses = 0;                  ///< per frame (vote, paper)
 };

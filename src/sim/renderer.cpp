@@ -653,6 +653,17 @@ std::shared_ptr<const Scene> sceneFor(const RenderSettings& settings) {
 constexpr RenderPreset kPresets[] = {RenderPreset::kDrive, RenderPreset::kHandheld, RenderPreset::kForward,
                                      RenderPreset::kDim, RenderPreset::kDroneNear};
 
+/// The settings' degradations, blurring along `blur_direction`.
+ImageDegradation degradationOf(const RenderSettings& s, const Eigen::Vector2d& blur_direction) {
+  ImageDegradation d;
+  d.contrast = s.contrast;
+  d.blur_px = s.blur_px;
+  d.blur_direction = blur_direction;
+  d.noise_sigma = s.noise_sigma;
+  d.jpeg_quality = s.jpeg_quality;
+  return d;
+}
+
 void validate(const RenderSettings& s) {
   RenderPreset known;
   if (!parsePreset(presetName(s.preset), &known)) throw std::invalid_argument("renderer: unknown preset");
@@ -664,14 +675,7 @@ void validate(const RenderSettings& s) {
     throw std::invalid_argument("renderer: focal lengths must be finite and positive");
   if (!(std::isfinite(s.cx) && std::isfinite(s.cy))) throw std::invalid_argument("renderer: non-finite principal point");
   if (!(std::isfinite(s.rate_hz) && s.rate_hz > 0)) throw std::invalid_argument("renderer: rate must be positive");
-  if (!(std::isfinite(s.noise_sigma) && s.noise_sigma >= 0))
-    throw std::invalid_argument("renderer: noise sigma must be finite and >= 0");
-  if (!(std::isfinite(s.contrast) && s.contrast > 0 && s.contrast <= 100))
-    throw std::invalid_argument("renderer: contrast must be in (0, 100]");
-  if (!(std::isfinite(s.blur_px) && s.blur_px >= 0 && s.blur_px <= 200))
-    throw std::invalid_argument("renderer: blur must be in [0, 200] px");
-  if (s.jpeg_quality < 0 || s.jpeg_quality > 100)
-    throw std::invalid_argument("renderer: JPEG quality must be in 1..100 (0 = no JPEG)");
+  checkDegradation(degradationOf(s, Eigen::Vector2d::UnitX()), "renderer");
 }
 
 /// Line kernel of `length` px along the unit direction `direction` (image x right, y down),
@@ -691,28 +695,6 @@ cv::Mat motionBlurKernel(double length, const Eigen::Vector2d& direction) {
     kernel.at<float>(yi + 1, xi + 1) += fx * fy;
   }
   return kernel / cv::sum(kernel)[0];
-}
-
-/// Contrast and motion blur on the noiseless image (float grey levels).
-void degradeScene(const RenderSettings& s, const Eigen::Vector2d& blur_direction, cv::Mat* acc) {
-  if (s.contrast != 1.0) {
-    const double mean = cv::mean(*acc)[0];
-    acc->convertTo(*acc, CV_32F, s.contrast, (1.0 - s.contrast) * mean);
-  }
-  if (s.blur_px > 0.0) {
-    cv::filter2D(*acc, *acc, CV_32F, motionBlurKernel(s.blur_px, blur_direction), cv::Point(-1, -1), 0,
-                 cv::BORDER_REFLECT_101);
-  }
-}
-
-/// JPEG round trip of the final 8-bit image.
-void compressJpeg(int quality, cv::Mat* image) {
-  if (quality <= 0) return;
-  std::vector<uchar> bytes;
-  if (!cv::imencode(".jpg", *image, bytes, {cv::IMWRITE_JPEG_QUALITY, quality}))
-    throw std::runtime_error("renderer: JPEG encoding failed");
-  *image = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
-  if (image->empty()) throw std::runtime_error("renderer: JPEG decoding failed");
 }
 
 /// Per-frame constants of one plane: every dot product with the sample ray d(i, j) is linear in
@@ -845,19 +827,7 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
     }
   }
 
-  degradeScene(s, blur_direction, &acc);
-  cv::Mat image(s.height, s.width, CV_8UC1);
-  Rng noise(noise_seed);
-  for (int y = 0; y < s.height; ++y) {
-    const float* acc_row = acc.ptr<float>(y);
-    uint8_t* out = image.ptr<uint8_t>(y);
-    for (int x = 0; x < s.width; ++x) {
-      const double v = acc_row[x] + (s.noise_sigma > 0 ? s.noise_sigma * noise.normal() : 0.0);
-      out[x] = static_cast<uint8_t>(std::clamp(v, 0.0, 255.0) + 0.5);
-    }
-  }
-  compressJpeg(s.jpeg_quality, &image);
-  return image;
+  return degradeImage(acc, degradationOf(s, blur_direction), noise_seed);
 }
 
 /// Direction of the image motion at the principal point over one frame interval centred on t
@@ -907,6 +877,54 @@ double presetRateHz(RenderPreset preset) {
     case RenderPreset::kForward: break;
   }
   return 10.0;
+}
+
+void checkDegradation(const ImageDegradation& d, const std::string& who) {
+  if (!(std::isfinite(d.noise_sigma) && d.noise_sigma >= 0))
+    throw std::invalid_argument(who + ": noise sigma must be finite and >= 0");
+  if (!(std::isfinite(d.contrast) && d.contrast > 0 && d.contrast <= 100))
+    throw std::invalid_argument(who + ": contrast must be in (0, 100]");
+  if (!(std::isfinite(d.blur_px) && d.blur_px >= 0 && d.blur_px <= 200))
+    throw std::invalid_argument(who + ": blur must be in [0, 200] px");
+  if (!(d.blur_direction.allFinite() && std::abs(d.blur_direction.norm() - 1.0) < 1e-6))
+    throw std::invalid_argument(who + ": blur direction must be a unit vector");
+  if (d.jpeg_quality < 0 || d.jpeg_quality > 100)
+    throw std::invalid_argument(who + ": JPEG quality must be in 1..100 (0 = no JPEG)");
+}
+
+cv::Mat degradeImage(const cv::Mat& image, const ImageDegradation& d, uint64_t noise_seed) {
+  checkDegradation(d, "image degradation");
+  if (image.type() != CV_8UC1 && image.type() != CV_32FC1)
+    throw std::invalid_argument("image degradation: the image must be CV_8UC1 or CV_32FC1");
+  cv::Mat scene;
+  image.convertTo(scene, CV_32F);
+  // Contrast and blur act on the noiseless grey levels, as a dimmer or moving scene would.
+  if (d.contrast != 1.0) {
+    const double mean = cv::mean(scene)[0];
+    scene.convertTo(scene, CV_32F, d.contrast, (1.0 - d.contrast) * mean);
+  }
+  if (d.blur_px > 0.0) {
+    cv::filter2D(scene, scene, CV_32F, motionBlurKernel(d.blur_px, d.blur_direction), cv::Point(-1, -1), 0,
+                 cv::BORDER_REFLECT_101);
+  }
+  cv::Mat out(scene.rows, scene.cols, CV_8UC1);
+  Rng noise(noise_seed);
+  for (int y = 0; y < scene.rows; ++y) {
+    const float* row = scene.ptr<float>(y);
+    uint8_t* to = out.ptr<uint8_t>(y);
+    for (int x = 0; x < scene.cols; ++x) {
+      const double v = row[x] + (d.noise_sigma > 0 ? d.noise_sigma * noise.normal() : 0.0);
+      to[x] = static_cast<uint8_t>(std::clamp(v, 0.0, 255.0) + 0.5);
+    }
+  }
+  if (d.jpeg_quality > 0) {
+    std::vector<uchar> bytes;
+    if (!cv::imencode(".jpg", out, bytes, {cv::IMWRITE_JPEG_QUALITY, d.jpeg_quality}))
+      throw std::runtime_error("image degradation: JPEG encoding failed");
+    out = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    if (out.empty()) throw std::runtime_error("image degradation: JPEG decoding failed");
+  }
+  return out;
 }
 
 RenderedSequence renderSequence(const RenderSettings& settings) {

@@ -42,6 +42,10 @@ const char* const kUsage =
     "  --backend B            auto, cpu or cuda (vote, paper; default auto)\n"
     "  --outliers F           replace the fraction F of the matches by random wrong pairings\n"
     "  --max-matches N        use at most N matches per pair (a deterministic random subset)\n"
+    "  --contrast F           degrade every image as it is read: grey levels scaled about the\n"
+    "                         image mean by F (dimmer footage: F < 1), then\n"
+    "  --noise SIGMA          Gaussian pixel noise [grey levels] added, then\n"
+    "  --jpeg Q               a JPEG round trip at quality Q, 1..100 (as render_sequence's)\n"
     "  --export-bearings FILE write the matched bearings of every pair (text)\n"
     "  --front-end F          native (default), orb (OpenCV ORB, 1500 features, BFMatcher with\n"
     "                         cross-check) or klt (goodFeaturesToTrack + calcOpticalFlowPyrLK)\n"
@@ -100,6 +104,12 @@ Options parseOptions(int argc, char** argv) {
         throw UsageError("--backend must be auto, cpu or cuda, not '" + o.backend + "'");
     } else if (args.is("--outliers")) {
       o.pairs.outliers = args.doubleValue(0.0, 1.0);
+    } else if (args.is("--contrast")) {
+      o.pairs.degradation.contrast = args.doubleValue(1e-3, 100.0);
+    } else if (args.is("--noise")) {
+      o.pairs.degradation.noise_sigma = args.doubleValue(0.0, 255.0);
+    } else if (args.is("--jpeg")) {
+      o.pairs.degradation.jpeg_quality = static_cast<int>(args.intValue(1, 100));
     } else if (args.is("--max-matches")) {
       o.pairs.max_matches = static_cast<int>(args.intValue(1, 100000000));
     } else if (args.is("--export-bearings")) {
@@ -240,6 +250,7 @@ int run(int argc, char** argv) {
   description.layout = seq.layout;
   description.truth = seq.truth;
   description.outliers = o.pairs.outliers;
+  description.degradation = o.pairs.degradation;
   description.stride = o.pairs.stride;
   description.hypotheses = settings.estimator.hypotheses;
   for (const auto& s : summaries) std::cout << eval::summaryText(description, s);
