@@ -169,6 +169,12 @@ struct VoteDiagnostics {
   /// exceeds sigma^2 (J^T W J)^-1; with integer ones, at most kIntegerPositionsEffectiveMatches
   /// (RotationEstimator::setRefinedPositions; README, "Covariance model").
   double effective_matches = 0.0;
+  /// Matches whose residual lies between one and three inlier gates, per inlier (refined positions
+  /// only; 0 otherwise): how many matches are located a little worse than the inliers.
+  double near_miss_share = 0.0;
+  /// The covariance also took the spread of refits without each spatial group of the matches (run
+  /// when near_miss_share is 0.1 or more; README, "Covariance model").
+  bool refit_jackknife = false;
 };
 
 /// Result of one rotation estimate.

@@ -531,6 +531,30 @@ void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const st
     cy[i] = current[i].y();
     cz[i] = current[i].z();
   }
+  finishAssign();
+}
+
+void FrameMatches::assignWithout(const FrameMatches& from, const std::vector<int>& group, int left_out) {
+  const size_t n = from.size();
+  size_t kept = 0;
+  for (size_t i = 0; i < n; ++i) kept += group[i] != left_out;
+  for (std::vector<double>* v : {&px, &py, &pz, &cx, &cy, &cz}) v->resize(kept);
+  size_t k = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (group[i] == left_out) continue;
+    px[k] = from.px[i];
+    py[k] = from.py[i];
+    pz[k] = from.pz[i];
+    cx[k] = from.cx[i];
+    cy[k] = from.cy[i];
+    cz[k] = from.cz[i];
+    ++k;
+  }
+  finishAssign();
+}
+
+void FrameMatches::finishAssign() {
+  const size_t n = size();
   const size_t odd_start = (n + 1) / 2;
   for (std::vector<double>* v : {&split_px, &split_py, &split_pz}) v->resize(n);
   splitByParity(n, px.data(), split_px.data(), split_px.data() + odd_start);
@@ -766,6 +790,84 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   const Eigen::Vector3d mean = steps.leftCols(groups).rowwise().mean();
   Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   for (int g = 0; g < groups; ++g) spread.noalias() += (steps.col(g) - mean) * (steps.col(g) - mean).transpose();
+  out.covariance = spread * (static_cast<double>(groups - 1) / groups);
+  out.groups = groups;
+  return out;
+}
+
+double nearMissShare(FrameMatches& m, const RefinedRotation& refined, double threshold) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  rotateAll(m, refined.rotation);
+  s.residuals.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
+  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
+  int inside = 0, near = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const bool counted = usable(s, i);
+    inside += counted & (s.residuals[i] < inside2);
+    near += counted & (s.residuals[i] >= inside2) & (s.residuals[i] < near2);
+  }
+  return static_cast<double>(near) / std::max(1, inside);
+}
+
+JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const RefinedRotation& refined,
+                                     double threshold, int iterations) {
+  JackknifeSpread out;
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  const int k = std::min(4, static_cast<int>(std::sqrt(static_cast<double>(n) / kMinJackknifeGroupSize)));
+  if (k < 2) return out;
+  // The partition of jackknifeSpread, over every match: k strips of equal count across x, each
+  // cut into k groups of equal count along y, ties broken by index.
+  std::vector<uint32_t>& order = s.all_order;
+  order.resize(n);
+  for (size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
+  const auto by_x = [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b] || (m.px[a] == m.px[b] && a < b); };
+  const auto by_y = [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b] || (m.py[a] == m.py[b] && a < b); };
+  const auto stripStart = [k, n](int strip) { return strip * n / k; };
+  const auto partStart = [k](size_t length, int part) { return (part * length + k - 1) / k; };
+  for (int strip = 1; strip < k; ++strip) {
+    std::nth_element(order.begin() + stripStart(strip - 1), order.begin() + stripStart(strip), order.end(), by_x);
+  }
+  std::vector<int>& group = s.all_group;
+  group.assign(n, -1);
+  for (int strip = 0; strip < k; ++strip) {
+    const auto begin = order.begin() + stripStart(strip), end = order.begin() + stripStart(strip + 1);
+    const size_t length = end - begin;
+    for (int part = 1; part < k; ++part) {
+      std::nth_element(begin + partStart(length, part - 1), begin + partStart(length, part), end, by_y);
+    }
+    for (int part = 0; part < k; ++part) {
+      for (auto it = begin + partStart(length, part); it != begin + partStart(length, part + 1); ++it) {
+        group[*it] = strip * k + part;
+      }
+    }
+  }
+  const int groups = k * k;
+  constexpr int kMaxGroups = 16;
+  std::array<Eigen::Vector3d, kMaxGroups> moved;
+  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  for (int g = 0; g < groups; ++g) {
+    rest->assignWithout(m, group, g);
+    RefinedRotation again;
+    if (pure) {
+      VerifiedRotation start;
+      start.rotation = refined.rotation;
+      again = refineRotation(*rest, start, threshold, iterations, true);
+    } else {
+      again = refineMotion(*rest, refined.rotation, refined.translation, threshold, iterations);
+    }
+    moved[g] = so3Log(refined.rotation.transpose() * again.rotation);
+    if (!moved[g].allFinite()) return out;
+  }
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int g = 0; g < groups; ++g) mean += moved[g];
+  mean /= groups;
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  for (int g = 0; g < groups; ++g) spread.noalias() += (moved[g] - mean) * (moved[g] - mean).transpose();
   out.covariance = spread * (static_cast<double>(groups - 1) / groups);
   out.groups = groups;
   return out;

@@ -15,6 +15,8 @@ class FrameMatches {
  public:
   /// Copies the bearings (previous[i] <-> current[i], equal sizes).
   void assign(const std::vector<Eigen::Vector3d>& previous, const std::vector<Eigen::Vector3d>& current);
+  /// Copies the matches of `from` whose `group` entry is not `left_out`, in index order.
+  void assignWithout(const FrameMatches& from, const std::vector<int>& group, int left_out);
   size_t size() const { return px.size(); }
   Eigen::Vector3d previous(size_t i) const { return Eigen::Vector3d(px[i], py[i], pz[i]); }
   Eigen::Vector3d current(size_t i) const { return Eigen::Vector3d(cx[i], cy[i], cz[i]); }
@@ -60,8 +62,14 @@ class FrameMatches {
     std::vector<uint32_t> order;
     std::vector<int> group;
     std::vector<uint32_t> members;  ///< the jackknife's inliers by group, each group in index order
+    std::vector<uint32_t> all_order;  ///< the refit jackknife's matches, ordered into spatial groups
+    std::vector<int> all_group;       ///< the refit jackknife's group of each match
   };
   Scratch scratch;
+
+ private:
+  /// The parity split and the reset of what was derived from the previous matches.
+  void finishAssign();
 };
 
 /// A candidate rotation checked against every match.
@@ -155,5 +163,24 @@ struct JackknifeSpread {
 /// sigma^2 (J^T W J)^-1 it sees errors that neighbouring matches share (the same texture, blur or
 /// rounding), since a group's matches leave together.
 JackknifeSpread jackknifeSpread(FrameMatches& matches, const RefinedRotation& refined, double threshold);
+
+/// Usable matches whose residual at `refined` lies between its inlier gate (that of
+/// jackknifeSpread) and kNearMissGates times it, over those inside the gate: 0 when the inliers'
+/// residuals have a Gaussian core and every other match is a gross outlier; large when many
+/// matches are located a little worse than the inliers (dim, noisy or blurred images), so that
+/// which of them the gate keeps moves the solution.
+double nearMissShare(FrameMatches& matches, const RefinedRotation& refined, double threshold);
+/// The multiple of the inlier gate up to which nearMissShare counts a match as a near miss.
+constexpr double kNearMissGates = 3.0;
+
+/// The spread of the rotation over refits without each spatial group of all the matches: the
+/// matches (inliers or not) split into k x k groups of equal count by the previous bearing as in
+/// jackknifeSpread (at least kMinJackknifeGroupSize matches a group, k = 4 at most); each group is
+/// left out in turn and the rest refined again from `refined` (refineMotion for a general motion,
+/// a warm pure-rotation refinement otherwise, `iterations` each), gate and inliers chosen anew.
+/// Unlike jackknifeSpread, whose steps keep the inliers fixed, it sees how much the choice of
+/// inliers moves the solution. `rest` holds each refit's matches (its capacity is reused).
+JackknifeSpread refitJackknifeSpread(FrameMatches& matches, FrameMatches* rest, const RefinedRotation& refined,
+                                     double threshold, int iterations);
 
 }  // namespace visual_gyro
