@@ -58,12 +58,6 @@ constexpr double kRestartSeparationDeg = 0.3;
 // The descent on the truncated cost after the restarts: its step sizes about the camera axes [deg],
 // coarse to fine, and the most moves at each.
 constexpr std::array<double, 4> kDescentStepsDeg = {0.2, 0.1, 0.05, 0.025};
-// Near misses (nearMissShare) per inlier from which the covariance also takes the refit
-// jackknife's spread. Inliers with a Gaussian core and gross outliers leave a few hundredths (a
-// core of sigma = gate / 2.2 has 0.03 as much mass between one and three gates as inside one);
-// frames of well-lit footage stay below 0.1 (the 90th percentile was 0.09
-// on euroc_mh01_shake, 0.05 on kitti_turn), dim or wide-baseline ones lie above it.
-constexpr double kRefitNearMissShare = 0.1;
 constexpr int kDescentMovesPerStep = 20;
 
 // Translation starts of those restarts: unit directions in the camera frame (z forward), one per
@@ -79,6 +73,13 @@ const std::array<Eigen::Vector3d, 9>& restartDirections() {
   }();
   return directions;
 }
+
+// Near misses (nearMissShare) per inlier from which the covariance also takes the refit
+// jackknife's spread. Inliers with a Gaussian core and gross outliers leave a few hundredths (a
+// core of sigma = gate / 2.2 has 0.03 as much mass between one and three gates as inside one);
+// frames of well-lit footage stay below 0.1 (the 90th percentile was 0.09 on euroc_mh01_shake,
+// 0.05 on kitti_turn), dim or wide-baseline ones lie above it.
+constexpr double kRefitNearMissShare = 0.1;
 
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -490,7 +491,10 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, Eigen::Matrix
 // of the spatial jackknife's covariance to the statistical one, at least 1, since matches that
 // share an error (a patch of texture, blur) leave a jackknife group together; with integer
 // positions, inliers / kIntegerPositionsEffectiveMatches (their shared errors are global: no
-// group shows them). `effective_matches` is the inliers over that scale.
+// group shows them). With refined positions and many near misses, the scale is at least that of
+// the refits without each group (refitJackknifeSpread, on `iterations` each, `refit_matches` their
+// matches). The diagnostics get near_miss_share, refit_jackknife and effective_matches, the
+// inliers over the scale.
 Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
                                  const std::vector<RefinedRotation>& contenders, double threshold,
                                  int iterations, bool refined_positions, VoteDiagnostics* diagnostics) {

@@ -682,6 +682,47 @@ double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, c
   return truncatedCostOfNormals(m, translation, threshold);
 }
 
+namespace {
+
+// Groups per axis of a jackknife over `count` matches: 4 at most, at least kMinJackknifeGroupSize
+// matches a group (below 2, no jackknife).
+int jackknifeGroupsPerAxis(size_t count) {
+  return std::min(4, static_cast<int>(std::sqrt(static_cast<double>(count) / kMinJackknifeGroupSize)));
+}
+
+// The jackknives' partition of the matches listed in *order (which it reorders): k strips of equal
+// count across x of the previous bearing, each cut into k groups of equal count along y.
+// (*group)[i] becomes match i's group, strip * k + part, or -1 for a match not listed. Only which
+// range of ranks a match falls in matters, so successive partitions (linear time) serve where
+// sorts did; ties are broken by index, so the groups are fully determined.
+void spatialGroups(const FrameMatches& m, int k, std::vector<uint32_t>* order, std::vector<int>* group) {
+  const size_t count = order->size();
+  const auto by_x = [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b] || (m.px[a] == m.px[b] && a < b); };
+  const auto by_y = [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b] || (m.py[a] == m.py[b] && a < b); };
+  // Strip s holds the ranks from floor(s count / k); within a strip of `length`, rank j belongs to
+  // group floor(j k / length), so group p starts at rank ceil(p length / k).
+  const auto stripStart = [k, count](int strip) { return strip * count / k; };
+  const auto partStart = [k](size_t length, int part) { return (part * length + k - 1) / k; };
+  for (int strip = 1; strip < k; ++strip) {
+    std::nth_element(order->begin() + stripStart(strip - 1), order->begin() + stripStart(strip), order->end(), by_x);
+  }
+  group->assign(m.size(), -1);
+  for (int strip = 0; strip < k; ++strip) {
+    const auto begin = order->begin() + stripStart(strip), end = order->begin() + stripStart(strip + 1);
+    const size_t length = end - begin;
+    for (int part = 1; part < k; ++part) {
+      std::nth_element(begin + partStart(length, part - 1), begin + partStart(length, part), end, by_y);
+    }
+    for (int part = 0; part < k; ++part) {
+      for (auto it = begin + partStart(length, part); it != begin + partStart(length, part + 1); ++it) {
+        (*group)[*it] = strip * k + part;
+      }
+    }
+  }
+}
+
+}  // namespace
+
 JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {
   JackknifeSpread out;
   const size_t n = m.size();
@@ -700,33 +741,9 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
     count += usable(s, i) & (s.residuals[i] < gate * gate);
   }
   order.resize(count);
-  const int k = std::min(4, static_cast<int>(std::sqrt(static_cast<double>(count) / kMinJackknifeGroupSize)));
+  const int k = jackknifeGroupsPerAxis(count);
   if (k < 2) return out;
-  // k strips of equal count across x, each cut into k groups of equal count along y. Only which
-  // range of ranks a match falls in matters, so successive partitions (linear time) serve where
-  // sorts did; ties are broken by index, so the groups are fully determined.
-  const auto by_x = [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b] || (m.px[a] == m.px[b] && a < b); };
-  const auto by_y = [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b] || (m.py[a] == m.py[b] && a < b); };
-  // Strip s holds the ranks from floor(s count / k); within a strip of `length`, rank j belongs to
-  // group floor(j k / length), so group p starts at rank ceil(p length / k).
-  const auto stripStart = [k, count](int strip) { return strip * count / k; };
-  const auto partStart = [k](size_t length, int part) { return (part * length + k - 1) / k; };
-  for (int strip = 1; strip < k; ++strip) {
-    std::nth_element(order.begin() + stripStart(strip - 1), order.begin() + stripStart(strip), order.end(), by_x);
-  }
-  s.group.assign(n, -1);
-  for (int strip = 0; strip < k; ++strip) {
-    const auto begin = order.begin() + stripStart(strip), end = order.begin() + stripStart(strip + 1);
-    const size_t length = end - begin;
-    for (int part = 1; part < k; ++part) {
-      std::nth_element(begin + partStart(length, part - 1), begin + partStart(length, part), end, by_y);
-    }
-    for (int part = 0; part < k; ++part) {
-      for (auto it = begin + partStart(length, part); it != begin + partStart(length, part + 1); ++it) {
-        s.group[*it] = strip * k + part;
-      }
-    }
-  }
+  spatialGroups(m, k, &order, &s.group);
   const int groups = k * k;
   constexpr int kMaxGroups = 16;
   Eigen::Matrix<double, 5, 5> A_group[kMaxGroups];
@@ -818,34 +835,14 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
   JackknifeSpread out;
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
-  const int k = std::min(4, static_cast<int>(std::sqrt(static_cast<double>(n) / kMinJackknifeGroupSize)));
+  const int k = jackknifeGroupsPerAxis(n);
   if (k < 2) return out;
-  // The partition of jackknifeSpread, over every match: k strips of equal count across x, each
-  // cut into k groups of equal count along y, ties broken by index.
+  // jackknifeSpread's partition, over every match.
   std::vector<uint32_t>& order = s.all_order;
   order.resize(n);
   for (size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
-  const auto by_x = [&](uint32_t a, uint32_t b) { return m.px[a] < m.px[b] || (m.px[a] == m.px[b] && a < b); };
-  const auto by_y = [&](uint32_t a, uint32_t b) { return m.py[a] < m.py[b] || (m.py[a] == m.py[b] && a < b); };
-  const auto stripStart = [k, n](int strip) { return strip * n / k; };
-  const auto partStart = [k](size_t length, int part) { return (part * length + k - 1) / k; };
-  for (int strip = 1; strip < k; ++strip) {
-    std::nth_element(order.begin() + stripStart(strip - 1), order.begin() + stripStart(strip), order.end(), by_x);
-  }
   std::vector<int>& group = s.all_group;
-  group.assign(n, -1);
-  for (int strip = 0; strip < k; ++strip) {
-    const auto begin = order.begin() + stripStart(strip), end = order.begin() + stripStart(strip + 1);
-    const size_t length = end - begin;
-    for (int part = 1; part < k; ++part) {
-      std::nth_element(begin + partStart(length, part - 1), begin + partStart(length, part), end, by_y);
-    }
-    for (int part = 0; part < k; ++part) {
-      for (auto it = begin + partStart(length, part); it != begin + partStart(length, part + 1); ++it) {
-        group[*it] = strip * k + part;
-      }
-    }
-  }
+  spatialGroups(m, k, &order, &group);
   const int groups = k * k;
   constexpr int kMaxGroups = 16;
   std::array<Eigen::Vector3d, kMaxGroups> moved;
