@@ -74,7 +74,7 @@ const std::array<Eigen::Vector3d, 9>& restartDirections() {
   return directions;
 }
 
-// Near misses (nearMissShare) per inlier from which the covariance also takes the refit
+// Near misses (JackknifeSpread::near_miss_share) per inlier from which the covariance also takes the refit
 // jackknife's spread. Inliers with a Gaussian core and gross outliers leave a few hundredths (a
 // core of sigma = gate / 2.2 has 0.03 as much mass between one and three gates as inside one);
 // frames of well-lit footage stay below 0.1 (the 90th percentile was 0.09 on euroc_mh01_shake,
@@ -508,7 +508,7 @@ Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matc
     // The jackknife's steps keep the inliers fixed. When many matches lie just outside the gate,
     // which of them it keeps moves the solution as much as the inliers' own errors do, and the
     // refits without each group, choosing their inliers anew, show by how much.
-    diagnostics->near_miss_share = nearMissShare(matches, winner, threshold);
+    diagnostics->near_miss_share = jack.near_miss_share;
     if (diagnostics->near_miss_share >= kRefitNearMissShare && lu.isInvertible()) {
       const JackknifeSpread refit = refitJackknifeSpread(matches, refit_matches, winner, threshold, iterations);
       diagnostics->refit_jackknife = refit.groups > 0;

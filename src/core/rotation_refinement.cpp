@@ -684,10 +684,14 @@ double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, c
 
 namespace {
 
-// Groups per axis of a jackknife over `count` matches: 4 at most, at least kMinJackknifeGroupSize
-// matches a group (below 2, no jackknife).
+// Most groups per axis of a jackknife, and so most groups in all.
+constexpr int kMaxGroupsPerAxis = 4;
+constexpr int kMaxGroups = kMaxGroupsPerAxis * kMaxGroupsPerAxis;
+
+// Groups per axis of a jackknife over `count` matches: kMaxGroupsPerAxis at most, at least
+// kMinJackknifeGroupSize matches a group (below 2, no jackknife).
 int jackknifeGroupsPerAxis(size_t count) {
-  return std::min(4, static_cast<int>(std::sqrt(static_cast<double>(count) / kMinJackknifeGroupSize)));
+  return std::min(kMaxGroupsPerAxis, static_cast<int>(std::sqrt(static_cast<double>(count) / kMinJackknifeGroupSize)));
 }
 
 // The jackknives' partition of the matches listed in *order (which it reorders): k strips of equal
@@ -733,19 +737,22 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   s.residuals.resize(n);
   passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
   const double gate = pure ? kRotationGateScale * threshold : threshold;
+  const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
   std::vector<uint32_t>& order = s.order;
   order.resize(n);
-  size_t count = 0;
+  size_t count = 0, near = 0;
   for (size_t i = 0; i < n; ++i) {
     order[count] = static_cast<uint32_t>(i);
-    count += usable(s, i) & (s.residuals[i] < gate * gate);
+    const bool counted = usable(s, i);
+    count += counted & (s.residuals[i] < inside2);
+    near += counted & (s.residuals[i] >= inside2) & (s.residuals[i] < near2);
   }
   order.resize(count);
+  out.near_miss_share = static_cast<double>(near) / static_cast<double>(std::max<size_t>(1, count));
   const int k = jackknifeGroupsPerAxis(count);
   if (k < 2) return out;
   spatialGroups(m, k, &order, &s.group);
   const int groups = k * k;
-  constexpr int kMaxGroups = 16;
   Eigen::Matrix<double, 5, 5> A_group[kMaxGroups];
   Eigen::Matrix<double, 5, 1> g_group[kMaxGroups];
   for (int g = 0; g < groups; ++g) {
@@ -812,24 +819,6 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   return out;
 }
 
-double nearMissShare(FrameMatches& m, const RefinedRotation& refined, double threshold) {
-  const size_t n = m.size();
-  FrameMatches::Scratch& s = m.scratch;
-  const bool pure = refined.pure_rotation || refined.translation.isZero();
-  rotateAll(m, refined.rotation);
-  s.residuals.resize(n);
-  passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
-  const double gate = pure ? kRotationGateScale * threshold : threshold;
-  const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
-  int inside = 0, near = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const bool counted = usable(s, i);
-    inside += counted & (s.residuals[i] < inside2);
-    near += counted & (s.residuals[i] >= inside2) & (s.residuals[i] < near2);
-  }
-  return static_cast<double>(near) / std::max(1, inside);
-}
-
 JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const RefinedRotation& refined,
                                      double threshold, int iterations) {
   JackknifeSpread out;
@@ -844,7 +833,6 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
   std::vector<int>& group = s.all_group;
   spatialGroups(m, k, &order, &group);
   const int groups = k * k;
-  constexpr int kMaxGroups = 16;
   std::array<Eigen::Vector3d, kMaxGroups> moved;
   const bool pure = refined.pure_rotation || refined.translation.isZero();
   for (int g = 0; g < groups; ++g) {

@@ -153,7 +153,16 @@ struct JackknifeSpread {
   /// from how far the rotation moves when each group is left out; zero when `groups` is 0.
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
   int groups = 0;  ///< groups of inliers used; 0 when the inliers are too few to form four
+  /// Usable matches whose residual lies between the inlier gate and kNearMissGates times it, over
+  /// the inliers (set whether or not the groups formed): 0 when the inliers' residuals have a
+  /// Gaussian core and every other match is a gross outlier; large when many matches are located
+  /// a little worse than the inliers (dim, noisy or blurred images), so that which of them the
+  /// gate keeps moves the solution.
+  double near_miss_share = 0.0;
 };
+
+/// The multiple of the inlier gate up to which JackknifeSpread::near_miss_share counts a match.
+constexpr double kNearMissGates = 3.0;
 
 /// The spread of `refined` over spatial groups of its inliers. The inliers (under the residual and
 /// gate of refineRotation's covariance) are split into k x k groups of equal count by the previous
@@ -163,15 +172,6 @@ struct JackknifeSpread {
 /// sigma^2 (J^T W J)^-1 it sees errors that neighbouring matches share (the same texture, blur or
 /// rounding), since a group's matches leave together.
 JackknifeSpread jackknifeSpread(FrameMatches& matches, const RefinedRotation& refined, double threshold);
-
-/// Usable matches whose residual at `refined` lies between its inlier gate (that of
-/// jackknifeSpread) and kNearMissGates times it, over those inside the gate: 0 when the inliers'
-/// residuals have a Gaussian core and every other match is a gross outlier; large when many
-/// matches are located a little worse than the inliers (dim, noisy or blurred images), so that
-/// which of them the gate keeps moves the solution.
-double nearMissShare(FrameMatches& matches, const RefinedRotation& refined, double threshold);
-/// The multiple of the inlier gate up to which nearMissShare counts a match as a near miss.
-constexpr double kNearMissGates = 3.0;
 
 /// The spread of the rotation over refits without each spatial group of all the matches: the
 /// matches (inliers or not) split into k x k groups of equal count by the previous bearing as in
