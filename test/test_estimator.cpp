@@ -618,6 +618,35 @@ TEST(VoteMethod, NearMissesTakeTheRefitJackknife) {
   EXPECT_TRUE(std::isfinite(refit_sum));
 }
 
+// estimateSameFrame: another estimate of the same frame from other matches draws with that
+// frame's seed and leaves the following frames' draws as they were.
+TEST(Estimator, EstimateSameFrameDoesNotCountAsAFrame) {
+  const Matrix3d R1 = vg::rotationFromYawPitchRoll(1.2 * kDeg, 0.3 * kDeg, 0.0);
+  const Matrix3d R2 = vg::rotationFromYawPitchRoll(-0.8 * kDeg, 0.0, 0.4 * kDeg);
+  const Scene first = makeScene(R1, Vector3d(0.02, 0.0, 0.01), 300, 0.5e-3, 0.3, 1.0, 4.0, 41);
+  const Scene other = makeScene(R1, Vector3d(0.02, 0.0, 0.01), 200, 0.8e-3, 0.3, 1.0, 4.0, 42);
+  const Scene second = makeScene(R2, Vector3d(0.0, 0.01, 0.02), 300, 0.5e-3, 0.3, 1.0, 4.0, 43);
+  auto plain = vg::createRotationEstimator(cpuSettings("vote"));
+  auto twice = vg::createRotationEstimator(cpuSettings("vote"));
+  const vg::RotationResult plain_first = plain->estimate(first.previous, first.current);
+  const vg::RotationResult plain_second = plain->estimate(second.previous, second.current);
+  twice->estimate(first.previous, first.current);
+  // The same matches again as the same frame: the same draws, so the same result.
+  const vg::RotationResult again = twice->estimateSameFrame(first.previous, first.current);
+  ASSERT_TRUE(again.valid()) << again.reason;
+  EXPECT_TRUE(again.rotation.isApprox(plain_first.rotation, 1e-12));
+  EXPECT_EQ(again.inliers, plain_first.inliers);
+  const vg::RotationResult alternative = twice->estimateSameFrame(other.previous, other.current);
+  ASSERT_TRUE(alternative.valid()) << alternative.reason;
+  EXPECT_LT(vg::rotationAngleBetween(alternative.rotation, R1), 0.5 * kDeg);
+  EXPECT_EQ(twice->frameCount(), 1u);
+  const vg::RotationResult twice_second = twice->estimate(second.previous, second.current);
+  ASSERT_TRUE(twice_second.valid()) << twice_second.reason;
+  EXPECT_TRUE(twice_second.rotation.isApprox(plain_second.rotation, 1e-12));
+  EXPECT_EQ(twice_second.inliers, plain_second.inliers);
+  EXPECT_EQ(twice->frameCount(), 2u);
+}
+
 TEST(VoteMethod, WrongPriorFallsBackToTheWideWindow) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(12 * kDeg, 0.0, 0.0);
   const Scene s = makeScene(R, Vector3d::Zero(), 400, 0.5e-3, 0.2, 5, 50, 25);

@@ -54,6 +54,82 @@ TEST(Pipeline, EstimatesTheRenderedRotationAndRate) {
                                     second.times.align + second.times.estimate);
   EXPECT_GT(second.rotation.times.estimate, 0.0);
   EXPECT_EQ(second.rotation.backend, "cpu");
+  // Hundreds of sharp matches: the pair is not tried at half resolution.
+  EXPECT_FALSE(second.half_resolution);
+  EXPECT_GE(static_cast<int>(second.previous_bearings.size()), cpuSettings().front_end.half_resolution_below);
+}
+
+// Heavy motion blur (15 px, the whole frame interval at 30 Hz) on a dim 1280 x 720 room, JPEG 60:
+// at full resolution FAST finds few corners that survive the blur (tens of matches, four pairs too
+// few to estimate, one confidently wrong), at half resolution the blur is half as long and hundreds
+// match. The pipeline matches starved pairs again at half resolution and keeps the estimate whose
+// covariance is smaller; without that, the same frames are invalid or far off.
+TEST(Pipeline, HeavyMotionBlurIsMatchedAtHalfResolution) {
+  vg::RenderSettings scene;
+  scene.preset = vg::RenderPreset::kDim;
+  scene.rate_hz = vg::presetRateHz(scene.preset);
+  scene.frames = 18;
+  scene.setCentredCamera(1280, 720, 900.0);
+  scene.blur_px = 15.0;
+  scene.jpeg_quality = 60;
+  const vg::RenderedSequence rendered = vg::renderSequence(scene);
+
+  struct Run {
+    int valid = 0, half = 0;
+    double sum_squared_error = 0.0, sum_nees = 0.0, max_error = 0.0;
+  };
+  auto run = [&](int half_resolution_below) {
+    vg::VisualGyroSettings settings = cpuSettings();
+    settings.front_end.half_resolution_below = half_resolution_below;
+    vg::VisualGyro gyro(cameraOf(scene), settings);
+    Run r;
+    for (int k = 0; k < scene.frames; ++k) {
+      const vg::FrameResult frame = gyro.processFrame(rendered.images[k], rendered.stamps[k]);
+      if (k == 0) continue;
+      const Eigen::Matrix3d truth = rendered.orientations[k - 1].transpose() * rendered.orientations[k];
+      // Invalid frames count as identity (as the evaluation scores them).
+      const Eigen::Matrix3d estimate = frame.hasEstimate() ? frame.rotation.rotation : Eigen::Matrix3d::Identity();
+      const double error = vg::rotationAngleBetween(estimate, truth);
+      r.sum_squared_error += error * error;
+      r.max_error = std::max(r.max_error, error);
+      if (!frame.hasEstimate()) continue;
+      ++r.valid;
+      const Eigen::AngleAxisd e(truth.transpose() * frame.rotation.rotation);
+      const Eigen::Vector3d v = e.angle() * e.axis();
+      r.sum_nees += v.dot(frame.rotation.covariance.inverse() * v);
+      if (frame.half_resolution) {
+        ++r.half;
+        EXPECT_EQ(frame.matching, "global") << "frame " << k;
+        // Full-resolution coordinates: inside the image, spread over it.
+        cv::Rect2f spread(cv::Point2f(1e9f, 1e9f), cv::Point2f(-1e9f, -1e9f));
+        for (const cv::Point2f& p : frame.current_pixels) {
+          EXPECT_TRUE(p.x >= 0.f && p.y >= 0.f && p.x <= scene.width - 1.f && p.y <= scene.height - 1.f) << p;
+          spread |= cv::Rect2f(p, cv::Size2f(0.f, 0.f));
+        }
+        EXPECT_GT(spread.width, 0.6f * scene.width) << "frame " << k;
+        EXPECT_LT(error, 0.05 * kDeg) << "frame " << k;
+      }
+    }
+    return r;
+  };
+  const int pairs = scene.frames - 1;
+  const Run with = run(cpuSettings().front_end.half_resolution_below);
+  const Run without = run(0);
+  const double rmse_with = std::sqrt(with.sum_squared_error / pairs) / kDeg;
+  const double rmse_without = std::sqrt(without.sum_squared_error / pairs) / kDeg;
+  std::printf("15 px blur: %d of %d pairs at half resolution, RMSE %.3f deg (max %.3f), NEES %.2f; full "
+              "resolution only: %d valid, RMSE %.3f deg (max %.3f)\n",
+              with.half, pairs, rmse_with, with.max_error / kDeg, with.sum_nees / std::max(with.valid, 1),
+              without.valid, rmse_without, without.max_error / kDeg);
+  EXPECT_EQ(without.half, 0);
+  EXPECT_GE(with.half, pairs / 2);
+  EXPECT_EQ(with.valid, pairs);
+  EXPECT_LT(rmse_with, 0.03);
+  EXPECT_LT(with.max_error, 0.1 * kDeg);
+  EXPECT_LT(with.sum_nees / with.valid, 3.0);
+  // Without the half-resolution pass the starved pairs are invalid or far off.
+  EXPECT_LT(without.valid, pairs);
+  EXPECT_GT(rmse_without, 5.0 * rmse_with);
 }
 
 TEST(Pipeline, RejectsBadImagesWithoutTouchingTheState) {

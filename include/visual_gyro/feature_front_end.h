@@ -61,6 +61,11 @@ struct FrontEndSettings {
   /// A tracked corner is kept when the zero-mean normalised cross-correlation of its previous and
   /// current 11 x 11 patches reaches this.
   double min_track_correlation = 0.8;
+  /// A pair that gives fewer matches than this (descriptor matches and tracks) at full resolution
+  /// is matched again on both images at half resolution (heavy motion blur leaves few corners at
+  /// full resolution and many at half); the pipeline keeps whichever estimate has the smaller
+  /// covariance. 0: never (VisualGyro::processFrame).
+  int half_resolution_below = 100;
 };
 
 /// Every front-end setting with its range, unit and doc (see setting_field.h).

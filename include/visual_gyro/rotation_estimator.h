@@ -247,6 +247,12 @@ class RotationEstimator {
   RotationResult estimate(const std::vector<Eigen::Vector3d>& previous,
                           const std::vector<Eigen::Vector3d>& current,
                           const RotationPrior& prior = RotationPrior());
+  /// After estimate(): another estimate for the same frame from other matches (the pipeline's
+  /// half-resolution matches). It draws with that frame's seed and does not count as a frame, so the
+  /// frames after it draw as if it had not run.
+  RotationResult estimateSameFrame(const std::vector<Eigen::Vector3d>& previous,
+                                   const std::vector<Eigen::Vector3d>& current,
+                                   const RotationPrior& prior = RotationPrior());
 
   /// Changes settings (e.g. from dynamic_reconfigure); the backend stays.
   void setSettings(const EstimatorSettings& settings);

@@ -57,6 +57,11 @@ struct FrameResult {
   /// Of the pairs below, how many are tracked corners (FrontEndSettings::track_unmatched); they
   /// come after the descriptor matches.
   int tracked = 0;
+  /// The pairs below come from both images at half resolution, matched globally: the
+  /// full-resolution pair gave fewer than FrontEndSettings::half_resolution_below matches, and the
+  /// estimate from the half-resolution pairs has the smaller covariance. Their pixels are
+  /// full-resolution coordinates all the same.
+  bool half_resolution = false;
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
@@ -139,8 +144,17 @@ class VisualGyro {
   /// Matches previous_features_ to features_ into matches_: guided by `prior` when usable, else
   /// (or when guided finds too few) global. Sets matching_.
   void matchFrames(const RotationPrior& prior);
-  /// Copies the pixels and bearings of matches_ into `result` (in match order).
+  /// Copies the pixels and bearings of matches_ (or of the half-resolution matches, when they are
+  /// used) into `result` (in match order).
   void collectMatches(FrameResult* result) const;
+  /// Matches the previous and the current image (`gray`) again at half resolution (globally) when
+  /// the full-resolution pair is starved (FrontEndSettings::half_resolution_below); sets
+  /// half_matched_ when that gave any match. Adds its stage times to `times`.
+  void matchHalfResolution(const cv::Mat& gray, FrameTimes* times);
+  /// Estimates from the matches in `result`; when there are half-resolution matches too, estimates
+  /// from those as well and keeps the valid estimate with the smaller covariance trace, leaving
+  /// its matches in `result` (half_resolution_used_ says which). Both estimates' times count.
+  RotationResult estimateAtBestResolution(const RotationPrior& prior, FrameResult* result);
   /// Records how far `prior` was from `estimate` (see prior_uncertainty_rad_).
   void updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate);
   /// Records how far the matches of `result` lie from where its estimated rotation alone puts
@@ -173,6 +187,23 @@ class VisualGyro {
   MatchPrediction prediction_;
   std::vector<FeatureMatch> matches_;
   std::vector<TrackedCorner> tracks_;  ///< unmatched previous corners found by tracking
+  /// The half-resolution pass (matchHalfResolution()): its own front end (its buffers and
+  /// detection state belong to half-resolution images), both images downsampled, their features,
+  /// matches and tracks. The current frame's half-resolution image and features serve as the
+  /// previous ones on the next frame when half_previous_ready_.
+  FeatureFrontEnd half_front_end_;
+  bool half_matched_ = false;          ///< this pair has half-resolution matches
+  bool half_resolution_used_ = false;  ///< the estimate came from them
+  bool half_current_ready_ = false;
+  bool half_previous_ready_ = false;
+  cv::Mat half_previous_gray_, half_gray_;
+  std::vector<cv::Point2f> half_corners_;
+  FrameFeatures half_previous_features_, half_features_;
+  std::vector<FeatureMatch> half_matches_;
+  std::vector<TrackedCorner> half_tracks_;
+  /// The full-resolution matches while the half-resolution ones are estimated.
+  std::vector<cv::Point2f> full_previous_pixels_, full_current_pixels_;
+  std::vector<Eigen::Vector3d> full_previous_bearings_, full_current_bearings_;
 };
 
 }  // namespace visual_gyro

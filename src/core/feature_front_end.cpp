@@ -179,6 +179,9 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
       doubleField<S>("min_track_correlation", &S::min_track_correlation, -1.0, 1.0, "",
                      "a tracked corner's previous and current 11 x 11 patches must correlate (zero-mean "
                      "normalised) at least this much"),
+      intField<S>("half_resolution_below", &S::half_resolution_below, 0, 100000, "",
+                  "a pair with fewer matches (and tracks) is matched again at half resolution, and the estimate "
+                  "with the smaller covariance is kept (motion blur); 0: never"),
   };
   return fields;
 }

@@ -297,6 +297,13 @@ void RotationEstimator::setSettings(const EstimatorSettings& settings) {
 
 std::string RotationEstimator::backendName() const { return voter_->name(); }
 
+RotationResult RotationEstimator::estimateSameFrame(const std::vector<Eigen::Vector3d>& previous,
+                                                    const std::vector<Eigen::Vector3d>& current,
+                                                    const RotationPrior& prior) {
+  if (frame_count_ > 0) --frame_count_;
+  return estimate(previous, current, prior);
+}
+
 RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& previous,
                                            const std::vector<Eigen::Vector3d>& current,
                                            const RotationPrior& prior) {

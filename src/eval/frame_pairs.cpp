@@ -170,6 +170,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
     p.frozen = r.status == FrameStatus::kFrozenImage;
     p.matching = r.matching;
     p.tracked = r.tracked;
+    p.half_resolution = r.half_resolution;
     fillTruth(seq, &p);
     subsampleMatches(o.max_matches, o.seed, &p);
     injectOutliers(o.outliers, o.seed, angle_per_px, &p);

@@ -32,6 +32,7 @@ struct FramePair {
   FrameTimes front_end;       ///< detect, describe, match of the current frame [ms]
   std::string matching;       ///< native front end: guided, global or global_fallback
   int tracked = 0;            ///< native front end: pairs that are tracked corners (before subsampling)
+  bool half_resolution = false;  ///< native front end: matched at half resolution (FrameResult)
   bool frozen = false;        ///< the current image is bit-identical to the previous one (no matches)
   metrics::FrameTruth truth;  ///< the pair's reference
   double true_translation = std::numeric_limits<double>::quiet_NaN();  ///< camera displacement [m] (poses)

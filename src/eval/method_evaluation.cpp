@@ -51,6 +51,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     row.pure_rotation = e.pure_rotation;
     row.translation = e.translation;
     row.diagnostics = e.diagnostics;
+    row.half_resolution = p.half_resolution;
     row.error = e.error;
     if (e.has_covariance) {
       row.sigma_deg = std::sqrt(e.covariance.trace()) * kRadToDeg;
@@ -69,6 +70,7 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     s.tracked_mean += p.tracked;
     if (p.matching == "guided") ++s.guided_pairs;
     if (p.matching == "global_fallback") ++s.fallback_pairs;
+    if (p.half_resolution) ++s.half_resolution_pairs;
     s.rows.push_back(row);
   }
   s.accuracy = accuracy.summary();
@@ -128,6 +130,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
       out << ": " << s.guided_pairs << " pairs guided, " << s.fallback_pairs << " fell back to global";
   }
   if (s.tracked_mean > 0.0) out << "; " << fmt(s.tracked_mean, 1) << " of them tracked";
+  if (s.half_resolution_pairs > 0) out << "; " << s.half_resolution_pairs << " pairs at half resolution";
   out << ")\n";
   out << "   ms per frame    detect " << fmt(s.detect) << ", describe " << fmt(s.describe) << ", match "
       << fmt(s.match) << ", align " << fmt(s.align) << ", estimate " << fmt(s.estimate) << ", total " << fmt(s.total) << "\n";
@@ -157,6 +160,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("matching", s.matching)
       .add("guided_pairs", s.guided_pairs)
       .add("fallback_pairs", s.fallback_pairs)
+      .add("half_resolution_pairs", s.half_resolution_pairs)
       .add("layout", run.layout)
       .add("hypotheses", isOwnMethod(s.method) ? run.hypotheses : 0)
       .add("outliers", run.outliers)
@@ -178,7 +182,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
   if (!f) throw DataError("cannot write " + path);
   f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
        "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
-       "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,near_miss_share,refit_jackknife,err_x_deg,err_y_deg,"
+       "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,near_miss_share,refit_jackknife,half_resolution,err_x_deg,err_y_deg,"
        "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,error\n";
   auto num = [](double v) -> std::string {
     if (!std::isfinite(v)) return "";
@@ -200,7 +204,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
         << (r.diagnostics.valley_moved ? "moved" : r.diagnostics.valley_searched ? "searched" : "") << ','
         << num(r.diagnostics.prior_offset * kRadToDeg) << ',' << num(r.diagnostics.residual_sigma * kRadToDeg) << ','
         << num(r.diagnostics.effective_matches) << ',' << num(r.diagnostics.near_miss_share) << ','
-        << (r.diagnostics.refit_jackknife ? 1 : 0);
+        << (r.diagnostics.refit_jackknife ? 1 : 0) << ',' << (r.half_resolution ? 1 : 0);
       for (int k = 0; k < 3; ++k) f << ',' << num(e.error_vector_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.translation[k]);

@@ -27,6 +27,7 @@ struct FrameRow {
   bool pure_rotation = false;
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();  ///< MethodEstimate::translation
   VoteDiagnostics diagnostics;
+  bool half_resolution = false;  ///< the pair's matches came from half resolution (FramePair)
   std::string error;
 };
 
@@ -45,6 +46,7 @@ struct MethodSummary {
   double tracked_mean = 0;  ///< native: tracked corners per pair (FrontEndSettings::track_unmatched)
   int guided_pairs = 0;   ///< native: pairs matched guided by the prior
   int fallback_pairs = 0;  ///< native: pairs where guided matching fell back to global
+  int half_resolution_pairs = 0;  ///< native: pairs matched at half resolution (starved at full)
 };
 
 /// Runs `runner` over `pairs` in order and scores every frame.

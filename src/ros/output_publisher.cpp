@@ -54,6 +54,7 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   msg->features = count(result.features);
   msg->matches = count(rot.matches_used);
   msg->tracked = count(result.tracked);
+  msg->half_resolution = result.half_resolution;
   msg->hypotheses = count(rot.hypotheses_drawn);
   msg->hypotheses_accepted = count(rot.hypotheses_accepted);
   msg->winning_votes = count(rot.winning_votes);

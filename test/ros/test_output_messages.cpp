@@ -27,6 +27,7 @@ FrameResult turnResult() {
   r.features = 700;
   r.rotation.matches_used = 400;
   r.tracked = 150;
+  r.half_resolution = true;
   return r;
 }
 
@@ -55,6 +56,7 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
   EXPECT_EQ(msg->method, "vote");
   EXPECT_EQ(msg->matches, 400u);
   EXPECT_EQ(msg->tracked, 150u);
+  EXPECT_TRUE(msg->half_resolution);
   const auto imu = om::imu(*msg, settings);
   ASSERT_TRUE(imu);
   EXPECT_NEAR(imu->angular_velocity.y, 0.2, 1e-12);
