@@ -243,8 +243,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     collectMatches(&result);
     if (settings_.run_estimator) {
       result.rotation = estimateAtBestResolution(prior, &result);
-      // Half-resolution matches are global matches already.
-      if (!result.rotation.valid() && matching_ == "guided" && !half_matched_) {
+      if (!result.rotation.valid() && matching_ == "guided") {
         // Guided matches that give no estimate: the prior may have sent the search to the wrong
         // place (plenty of chance matches there, few consistent). Global matching does not
         // depend on it; its estimate replaces the guided one, and both estimates' times count.

@@ -116,7 +116,7 @@ void NodeDiagnostics::reset(const std::string& cause) {
 }
 
 void NodeDiagnostics::estimatePublished(bool valid, const std::string& status, double latency_ms,
-                                        int matches, double vote_ratio) {
+                                        int matches, double vote_ratio, bool half_resolution) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++window_.estimates;
   ++total_estimates_;
@@ -124,6 +124,7 @@ void NodeDiagnostics::estimatePublished(bool valid, const std::string& status, d
   window_.latency_max_ms = std::max(window_.latency_max_ms, latency_ms);
   window_.matches_sum += matches;
   window_.vote_ratio_sum += vote_ratio;
+  if (half_resolution) ++window_.half_resolution;
   if (!valid) {
     ++window_.invalid;
     ++total_invalid_;
@@ -165,6 +166,9 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
   status.add("Latency max [ms]", w.latency_max_ms);
   status.add("Matches (mean)", w.estimates > 0 ? w.matches_sum / w.estimates : 0.0);
   status.add("Winning vote ratio (mean)", w.estimates > 0 ? w.vote_ratio_sum / w.estimates : 0.0);
+  // Many pairs at half resolution: the camera blurs most images (exposure too long for the motion).
+  status.add("Half-resolution pairs [%]",
+             w.estimates > 0 ? 100.0 * static_cast<double>(w.half_resolution) / w.estimates : 0.0);
   status.add("Method", context.method.empty() ? std::string("?") : context.method);
   status.add("Backend requested", context.backend_requested);
   const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;

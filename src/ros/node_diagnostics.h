@@ -46,10 +46,10 @@ class NodeDiagnostics {
   void reset(const std::string& cause);
   /// A frame went through the pipeline.
   void processed();
-  /// A RotationEstimate was published: its validity, status, latency [ms], matches and the ratio
-  /// of winning votes to accepted hypotheses.
+  /// A RotationEstimate was published: its validity, status, latency [ms], matches, the ratio
+  /// of winning votes to accepted hypotheses, and whether its matches came from half resolution.
   void estimatePublished(bool valid, const std::string& status, double latency_ms, int matches,
-                         double vote_ratio);
+                         double vote_ratio, bool half_resolution = false);
   /// An Imu was published.
   void imuPublished();
   /// Why the current camera model is unusable; "" clears it.
@@ -75,7 +75,7 @@ class NodeDiagnostics {
  private:
   struct Window {
     uint64_t images = 0, probed_images = 0, unpaired_images = 0, infos = 0, processed = 0, estimates = 0, imus = 0;
-    uint64_t invalid = 0, skipped = 0, resets = 0;
+    uint64_t invalid = 0, skipped = 0, resets = 0, half_resolution = 0;
     double latency_sum_ms = 0.0, latency_max_ms = 0.0, matches_sum = 0.0, vote_ratio_sum = 0.0;
     std::vector<double> stamp_steps;  ///< differences of consecutive image stamps [s]
   };

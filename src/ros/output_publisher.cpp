@@ -138,7 +138,8 @@ bool OutputPublisher::publish(const FrameOutput& frame, const OutputSettings& se
     const RotationResult& rot = frame.result->rotation;
     const double vote_ratio =
         rot.hypotheses_accepted > 0 ? static_cast<double>(rot.winning_votes) / rot.hypotheses_accepted : 0.0;
-    health_->estimatePublished(frame.valid, msg->status, msg->latency_ms, rot.matches_used, vote_ratio);
+    health_->estimatePublished(frame.valid, msg->status, msg->latency_ms, rot.matches_used, vote_ratio,
+                               frame.result->half_resolution);
   }
 
   // Integrated orientation: the first frame after a reset is the identity. It is the camera's

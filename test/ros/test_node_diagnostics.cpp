@@ -39,10 +39,12 @@ TEST(NodeDiagnostics, HealthyStreamIsOkWithRates) {
   for (int k = 0; k < 10; ++k) {
     d.imageIn(100.0 + 0.1 * k);
     d.processed();
-    if (k > 0) d.estimatePublished(true, "", 8.0, 500, 0.3);
+    if (k > 0) d.estimatePublished(true, "", 8.0, 500, 0.3, /*half_resolution=*/k % 3 == 0);
   }
   const auto s = fill(&d, 1.0);
   EXPECT_EQ(s.level, Level::OK) << s.message;
+  // Estimates 3, 6 and 9 of the nine came from half resolution.
+  EXPECT_NEAR(std::stod(value(s, "Half-resolution pairs [%]")), 100.0 / 3.0, 1e-3);
   EXPECT_NEAR(std::stod(value(s, "Expected rate [Hz] (image stamps)")), 10.0, 1e-6);
   EXPECT_NEAR(std::stod(value(s, "Estimates out [Hz]")), 9.0, 1e-6);
   // The next window has no input: waiting, OK.
