@@ -195,6 +195,19 @@ for spec in "=${DATA_DIR}/euroc_mh01_shake" "_drone_near=${OUT}/rendered/drone_n
   echo "[bench] strides over seeds on $(basename "${folder}") in $((SECONDS - t0)) s"
 done
 
+# 4f. Motion blur as long as the frame interval: the dim room at 1280 x 720 with 15 px of blur and
+#     JPEG 60, every method on the pipeline's matches (starved pairs matched again at half
+#     resolution), and vote without that second look (half_resolution_below = 0).
+blur_dir="${OUT}/rendered/dim_blur15_720p"
+rm -rf "${blur_dir}"
+if "${RENDER}" --preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900 --frames "${RENDER_FRAMES}" \
+    --out "${blur_dir}" >"${OUT}/logs/render_dim_blur15.log" 2>&1; then
+  run_eval rendered dim_blur15_720p 0 "${blur_dir}"
+  run_eval rendered dim_blur15_720p_full_resolution_only 0 "${blur_dir}" --method vote --set half_resolution_below=0
+else
+  echo "[bench] render_sequence dim --blur 15 failed; see ${OUT}/logs/render_dim_blur15.log" >&2
+fi
+
 # 5. Estimation time of every estimator over hypotheses (100..100 000 at 2 000 matches) and over
 #    matches (250..8 000 at 10 000 hypotheses), on the same real matches: kitti_turn with a denser
 #    front end (FAST threshold 8, up to 16 000 corners: ~3 400 matches a pair; beyond that the
