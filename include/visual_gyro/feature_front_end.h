@@ -63,7 +63,8 @@ struct FrontEndSettings {
   double min_track_correlation = 0.8;
   /// A pair that gives fewer matches than this (descriptor matches and tracks) at full resolution
   /// is matched again on both images at half resolution (heavy motion blur leaves few corners at
-  /// full resolution and many at half); the pipeline keeps whichever estimate has the smaller
+  /// full resolution and many at half); the pipeline keeps the half-resolution estimate when the
+  /// full-resolution one is invalid, or when it has at least as many inliers and a smaller
   /// covariance. 0: never (VisualGyro::processFrame).
   int half_resolution_below = 100;
 };

@@ -59,7 +59,8 @@ struct FrameResult {
   int tracked = 0;
   /// The pairs below come from both images at half resolution, matched globally: the
   /// full-resolution pair gave fewer than FrontEndSettings::half_resolution_below matches, and the
-  /// estimate from the half-resolution pairs has the smaller covariance. Their pixels are
+  /// estimate from the half-resolution pairs was the better one (valid where the full-resolution
+  /// one is not, or as many inliers or more and a smaller covariance). Their pixels are
   /// full-resolution coordinates all the same.
   bool half_resolution = false;
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
@@ -152,8 +153,10 @@ class VisualGyro {
   /// half_matched_ when that gave any match. Adds its stage times to `times`.
   void matchHalfResolution(const cv::Mat& gray, FrameTimes* times);
   /// Estimates from the matches in `result`; when there are half-resolution matches too, estimates
-  /// from those as well and keeps the valid estimate with the smaller covariance trace, leaving
-  /// its matches in `result` (half_resolution_used_ says which). Both estimates' times count.
+  /// from those as well (same frame seed) and keeps that estimate when it is valid and the
+  /// full-resolution one is not, or when it has at least as many inliers and a smaller covariance
+  /// trace, leaving the kept estimate's matches in `result` (half_resolution_used_ says which).
+  /// Both estimates' times count.
   RotationResult estimateAtBestResolution(const RotationPrior& prior, FrameResult* result);
   /// Records how far `prior` was from `estimate` (see prior_uncertainty_rad_).
   void updatePriorUncertainty(const RotationPrior& prior, const RotationResult& estimate);

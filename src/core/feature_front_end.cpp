@@ -180,8 +180,8 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
                      "a tracked corner's previous and current 11 x 11 patches must correlate (zero-mean "
                      "normalised) at least this much"),
       intField<S>("half_resolution_below", &S::half_resolution_below, 0, 100000, "",
-                  "a pair with fewer matches (and tracks) is matched again at half resolution, and the estimate "
-                  "with the smaller covariance is kept (motion blur); 0: never"),
+                  "a pair with fewer matches (and tracks) is matched again at half resolution, whose estimate is "
+                  "kept when it has at least as many inliers and a smaller covariance (motion blur); 0: never"),
   };
   return fields;
 }
