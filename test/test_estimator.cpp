@@ -569,6 +569,41 @@ TEST(VoteMethod, EffectiveMatchesFollowHowTheErrorsAreShared) {
 // on fixed inliers, do not see; refits without each group, choosing their inliers anew, do. The
 // estimator takes them where near misses are many, not on a clean frame. (Whether the covariance
 // then covers the error is judged on real footage: test_accuracy's dimmed euroc_mh01_shake.)
+// The directional widening the covariance takes from a jackknife: the larger variance along every
+// direction, neither argument left uncovered, no change where the spread is smaller everywhere.
+TEST(CoverInEveryDirection, TakesTheLargerVarianceAlongEachDirection) {
+  const auto isPositiveSemiDefinite = [](const Eigen::Matrix3d& m) {
+    return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(m).eigenvalues().minCoeff() > -1e-18;
+  };
+  const Eigen::Matrix3d rotate = vg::so3Exp(Eigen::Vector3d(0.3, -0.5, 0.7));
+  const Eigen::Matrix3d covariance =
+      rotate * Eigen::Vector3d(4e-6, 1e-6, 2e-6).asDiagonal() * rotate.transpose();
+  // Smaller in every direction: unchanged.
+  EXPECT_TRUE(vg::coverInEveryDirection(covariance, 0.5 * covariance).isApprox(covariance, 1e-12));
+  // Larger in every direction: the spread itself.
+  EXPECT_TRUE(vg::coverInEveryDirection(covariance, 3.0 * covariance).isApprox(3.0 * covariance, 1e-12));
+  // Larger along one direction only (a valley): that direction takes the spread's variance, which
+  // the mean ratio of the two, (9 + 0.1 + 0.1) / 3 about 3.1, would leave three times too thin.
+  const Eigen::Vector3d valley = Eigen::Vector3d(1.0, 2.0, -0.5).normalized();
+  const Eigen::Matrix3d iso = 1e-6 * Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d spread = 1e-6 * (0.1 * Eigen::Matrix3d::Identity() + 8.9 * valley * valley.transpose());
+  const Eigen::Matrix3d covered = vg::coverInEveryDirection(iso, spread);
+  EXPECT_NEAR(valley.dot(covered * valley), 9e-6, 1e-12);
+  const Eigen::Vector3d across = valley.unitOrthogonal();
+  EXPECT_NEAR(across.dot(covered * across), 1e-6, 1e-12);
+  EXPECT_TRUE(isPositiveSemiDefinite(covered - iso));
+  EXPECT_TRUE(isPositiveSemiDefinite(covered - spread));
+  // An anisotropic covariance against a spread larger along some directions only: both covered.
+  const Eigen::Matrix3d mixed = vg::coverInEveryDirection(covariance, spread);
+  EXPECT_TRUE(isPositiveSemiDefinite(mixed - covariance));
+  EXPECT_TRUE(isPositiveSemiDefinite(mixed - spread));
+  EXPECT_TRUE(mixed.isApprox(mixed.transpose(), 1e-15));
+  // Nothing to cover from: unchanged.
+  EXPECT_TRUE(vg::coverInEveryDirection(covariance, Eigen::Matrix3d::Constant(NAN)).isApprox(covariance));
+  const Eigen::Matrix3d singular = Eigen::Vector3d(1e-6, 0.0, 1e-6).asDiagonal();
+  EXPECT_TRUE(vg::coverInEveryDirection(singular, spread).isApprox(singular));
+}
+
 TEST(VoteMethod, NearMissesTakeTheRefitJackknife) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(1.5 * kDeg, 0.4 * kDeg, -0.3 * kDeg);
   const Vector3d t(0.03, 0.005, 0.01);  // metres, points 1-4 m away: near structure

@@ -500,15 +500,17 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, Eigen::Matrix
 // positions, inliers / kIntegerPositionsEffectiveMatches (their shared errors are global: no
 // group shows them). With refined positions and many near misses, the scale is at least that of
 // the refits without each group (refitJackknifeSpread, on `iterations` each, `refit_matches` their
-// matches). The diagnostics get near_miss_share, refit_jackknife and effective_matches, the
-// inliers over the scale.
+// matches). The scaled covariance is then widened where either jackknife's spread exceeds it along
+// some direction (coverInEveryDirection). The diagnostics get near_miss_share, refit_jackknife and
+// effective_matches, the inliers over the scale.
 Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
                                  const std::vector<RefinedRotation>& contenders, double threshold,
                                  int iterations, bool refined_positions, VoteDiagnostics* diagnostics) {
   double inflation = std::max(1.0, winner.inliers / kIntegerPositionsEffectiveMatches);
+  JackknifeSpread jack, refit;
   if (refined_positions) {
     inflation = 1.0;
-    const JackknifeSpread jack = jackknifeSpread(matches, winner, threshold);
+    jack = jackknifeSpread(matches, winner, threshold);
     const Eigen::FullPivLU<Eigen::Matrix3d> lu(winner.covariance);
     if (jack.groups > 0 && lu.isInvertible())
       inflation = std::max(1.0, (lu.inverse() * jack.covariance).trace() / 3.0);
@@ -517,13 +519,20 @@ Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matc
     // refits without each group, choosing their inliers anew, show by how much.
     diagnostics->near_miss_share = jack.near_miss_share;
     if (diagnostics->near_miss_share >= kRefitNearMissShare && lu.isInvertible()) {
-      const JackknifeSpread refit = refitJackknifeSpread(matches, refit_matches, winner, threshold, iterations);
+      refit = refitJackknifeSpread(matches, refit_matches, winner, threshold, iterations);
       diagnostics->refit_jackknife = refit.groups > 0;
       if (refit.groups > 0) inflation = std::max(inflation, (lu.inverse() * refit.covariance).trace() / 3.0);
     }
   }
   diagnostics->effective_matches = winner.inliers / inflation;
   Eigen::Matrix3d covariance = winner.covariance * inflation;
+  // The scale is a mean over directions: where a jackknife spreads further than the scaled
+  // covariance along one direction (the rotation/translation valley's, near structure), the scale
+  // alone leaves the covariance too thin there, and on pairs several frames apart the errors fell
+  // along such directions. So the covariance also covers each jackknife's spread in every
+  // direction; the scale stays as its floor, the steadier estimate of the two.
+  if (jack.groups > 0) covariance = coverInEveryDirection(covariance, jack.covariance);
+  if (refit.groups > 0) covariance = coverInEveryDirection(covariance, refit.covariance);
   // Each contender is weighted by how indistinguishable its inlier count is from the winner's: the
   // count's standard deviation is about sqrt(count) (binomial, most matches inliers), so a
   // contender z such deviations behind weighs exp(-z^2 / 2). The weighted second moment about the
