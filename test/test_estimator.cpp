@@ -564,11 +564,6 @@ TEST(VoteMethod, EffectiveMatchesFollowHowTheErrorsAreShared) {
   }
 }
 
-// Matches located a little worse than the inliers (dim or blurred images: residuals of one to
-// three gates) make which of them the gate keeps move the solution, which the jackknife's steps,
-// on fixed inliers, do not see; refits without each group, choosing their inliers anew, do. The
-// estimator takes them where near misses are many, not on a clean frame. (Whether the covariance
-// then covers the error is judged on real footage: test_accuracy's dimmed euroc_mh01_shake.)
 // The directional widening the covariance takes from a jackknife: the larger variance along every
 // direction, neither argument left uncovered, no change where the spread is smaller everywhere.
 TEST(CoverInEveryDirection, TakesTheLargerVarianceAlongEachDirection) {
@@ -604,6 +599,11 @@ TEST(CoverInEveryDirection, TakesTheLargerVarianceAlongEachDirection) {
   EXPECT_TRUE(vg::coverInEveryDirection(singular, spread).isApprox(singular));
 }
 
+// Matches located a little worse than the inliers (dim or blurred images: residuals of one to
+// three gates) make which of them the gate keeps move the solution, which the jackknife's steps,
+// on fixed inliers, do not see; refits without each group, choosing their inliers anew, do. The
+// estimator takes them where near misses are many, not on a clean frame. (Whether the covariance
+// then covers the error is judged on real footage: test_accuracy's dimmed euroc_mh01_shake.)
 TEST(VoteMethod, NearMissesTakeTheRefitJackknife) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(1.5 * kDeg, 0.4 * kDeg, -0.3 * kDeg);
   const Vector3d t(0.03, 0.005, 0.01);  // metres, points 1-4 m away: near structure
