@@ -94,6 +94,14 @@ struct RenderedSequence {
 /// Renders the preset. Throws std::invalid_argument for an unknown preset or bad sizes.
 RenderedSequence renderSequence(const RenderSettings& settings);
 
+/// The camera's pose on the preset's trajectory at each of `times` [s]: what renderSequence samples
+/// at its stamps k / rate_hz, at any time (e.g. to synthesise an IMU). Orientation camera -> world,
+/// position [m] in the world (the first camera's frame); `positions` may be null. The drive and
+/// forward trajectories depend on the sequence's duration (frames, rate_hz), as in renderSequence.
+/// Throws std::invalid_argument for an unknown preset or bad sizes.
+void trajectoryPoses(const RenderSettings& settings, const std::vector<double>& times,
+                     std::vector<Eigen::Matrix3d>* orientations, std::vector<Eigen::Vector3d>* positions);
+
 /// Renders one view of the preset's scene at an arbitrary pose (camera -> world).
 cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orientation,
                    const Eigen::Vector3d& position);

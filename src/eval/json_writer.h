@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 namespace visual_gyro {
 
@@ -19,6 +20,14 @@ class JsonObject {
   JsonObject& add(const std::string& key, long long value) { return raw(key, std::to_string(value)); }
   JsonObject& add(const std::string& key, bool value) { return raw(key, value ? "true" : "false"); }
   JsonObject& add(const std::string& key, const JsonObject& value) { return raw(key, value.str()); }
+  /// An array of numbers (each as number() writes it).
+  JsonObject& add(const std::string& key, const std::vector<double>& values) {
+    std::string list;
+    for (const double v : values) list += (list.empty() ? "" : ", ") + number(v);
+    return raw(key, "[" + list + "]");
+  }
+  /// null: a value that does not exist (e.g. not observable).
+  JsonObject& addNull(const std::string& key) { return raw(key, "null"); }
   /// The object as one line of text.
   std::string str() const { return "{" + body_ + "}"; }
 

@@ -5,6 +5,8 @@
 #   play_frames           frame-by-frame replay of such a bag through a running node
 #   summarize_outputs     errors of the recorded outputs against the bag's ground truth (demo JSON)
 #   integrate_imu         the recorded ~imu integrated as a filter does, orientation error over time
+#   calibrate_imu         camera-IMU time offset, rotation and gyro bias from a EuRoC folder or a bag
+#                         (src/tools/calibrate_imu.cpp: ROS-free itself, linked with the bag reader)
 
 set(VISUAL_GYRO_ROS_INCLUDES
   ${CMAKE_CURRENT_SOURCE_DIR}/src/ros
@@ -41,6 +43,7 @@ add_dependencies(visual_gyro_node visual_gyro_nodelet)
 # Bag writing/reading, frame-by-frame replay and output evaluation, shared by the commands and the
 # ROS tests.
 add_library(visual_gyro_ros_tools STATIC
+  src/ros/alignment_bag.cpp
   src/ros/bag_tools.cpp
   src/ros/frame_player.cpp
   src/ros/imu_integration.cpp)
@@ -52,7 +55,12 @@ foreach(tool make_bag play_frames summarize_outputs integrate_imu)
   target_link_libraries(${tool} visual_gyro_ros_tools visual_gyro_cli)
 endforeach()
 
+add_executable(calibrate_imu src/tools/calibrate_imu.cpp)
+target_link_libraries(calibrate_imu visual_gyro_ros_tools visual_gyro_cli)
+target_compile_options(calibrate_imu PRIVATE -Wall -Wextra)
+
 install(TARGETS visual_gyro_ros_common visual_gyro_nodelet visual_gyro_node make_bag play_frames summarize_outputs integrate_imu
+  calibrate_imu
   ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
   LIBRARY DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION}
   RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})

@@ -948,6 +948,21 @@ RenderedSequence renderSequence(const RenderSettings& settings) {
   return out;
 }
 
+void trajectoryPoses(const RenderSettings& settings, const std::vector<double>& times,
+                     std::vector<Eigen::Matrix3d>* orientations, std::vector<Eigen::Vector3d>* positions) {
+  validate(settings);
+  const Trajectory trajectory(settings.preset, (settings.frames - 1) / settings.rate_hz);
+  orientations->clear();
+  if (positions != nullptr) positions->clear();
+  for (const double t : times) {
+    Eigen::Matrix3d orientation;
+    Eigen::Vector3d position;
+    trajectory.pose(t, &orientation, &position);
+    orientations->push_back(orientation);
+    if (positions != nullptr) positions->push_back(position);
+  }
+}
+
 cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orientation,
                    const Eigen::Vector3d& position) {
   validate(settings);
