@@ -1,6 +1,7 @@
 #include "node_parameters.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace visual_gyro {
 
@@ -30,6 +31,10 @@ NodeParameters NodeParameters::read(const ros::NodeHandle& pnh) {
   pnh.param("mono16_bit_depth", p.mono16_bit_depth, p.mono16_bit_depth);
   if (p.mono16_bit_depth != 0 && (p.mono16_bit_depth < 8 || p.mono16_bit_depth > 16))
     p.problem = "~mono16_bit_depth must be 0 (per frame) or 8..16, got " + std::to_string(p.mono16_bit_depth);
+  pnh.param("time_offset", p.time_offset, p.time_offset);
+  if (!(std::abs(p.time_offset) <= kMaxTimeOffset))
+    p.problem = "~time_offset must lie in [-" + std::to_string(kMaxTimeOffset) + ", " + std::to_string(kMaxTimeOffset) +
+                "] s, got " + std::to_string(p.time_offset);
   return p;
 }
 

@@ -13,6 +13,9 @@
 
 namespace visual_gyro {
 
+/// Largest |~time_offset| accepted [s]: camera-IMU offsets are tens of milliseconds.
+constexpr double kMaxTimeOffset = 1.0;
+
 struct NodeParameters {
   bool use_camera_info = true;
   std::string transport = "raw";  ///< ~image_transport
@@ -28,6 +31,10 @@ struct NodeParameters {
   std::string distortion_model = "none";
   std::vector<double> distortion;  ///< ~D
   int mono16_bit_depth = 0;        ///< mono16 scaling: 0 = per frame, else the camera's bit depth
+  /// ~time_offset [s], in [-kMaxTimeOffset, kMaxTimeOffset]: added to every output stamp (~imu,
+  /// ~rotation, ~orientation, tf) to put it on the IMU's clock, t_imu = t_camera + time_offset
+  /// (what calibrate_imu measures). The yaw plot stays on the camera's clock.
+  double time_offset = 0.0;
   /// Why a parameter is unusable ("" when all are): the node then publishes nothing.
   std::string problem;
 

@@ -122,12 +122,21 @@ bool OutputPublisher::publish(const FrameOutput& frame, const OutputSettings& se
   const bool have_output_frame = outputRotation(image_header.frame_id, &to_output);
   if (frame.had_previous && frame.valid) integrated_ = integrated_ * frame.result->rotation.rotation;
   if (!have_output_frame) return false;  // outputRotation warned
+  // On the IMU's clock; a zero shift leaves every stamp exactly as computed.
+  const ros::Duration shift(params_.time_offset);
+  if (!(stamp + params_.time_offset > 0.0) || (frame.had_previous && !(frame.previous_stamp + params_.time_offset > 0.0))) {
+    ROS_ERROR_THROTTLE(10.0, "visual_gyro: image stamp %.6f s + ~time_offset %.6f s is not a positive time; outputs "
+                       "held back", stamp, params_.time_offset);
+    return false;
+  }
 
   if (frame.had_previous) {
     std_msgs::Header header = image_header;
     if (!params_.output_frame.empty()) header.frame_id = params_.output_frame;
     if (settings.stamp_at_midpoint) header.stamp.fromSec(0.5 * (frame.previous_stamp + stamp));
+    header.stamp += shift;
     visual_gyro::RotationEstimatePtr msg = output_messages::rotationEstimate(frame, header, to_output, settings);
+    msg->previous_stamp += shift;
     const sensor_msgs::ImuPtr imu = output_messages::imu(*msg, settings);
     msg->latency_ms = (ros::WallTime::now() - frame.wall_start).toSec() * 1e3;
     if (imu) {
@@ -145,7 +154,7 @@ bool OutputPublisher::publish(const FrameOutput& frame, const OutputSettings& se
   // Integrated orientation: the first frame after a reset is the identity. It is the camera's
   // orientation when this image was taken, so it carries the image's stamp (not the midpoint).
   geometry_msgs::PoseStampedPtr pose(new geometry_msgs::PoseStamped);
-  pose->header.stamp = image_header.stamp;
+  pose->header.stamp = image_header.stamp + shift;
   pose->header.frame_id = params_.world_frame;
   pose->pose.orientation = conv::toMsg(Eigen::Quaterniond(to_output * integrated_ * to_output.transpose()));
   orientation_pub_.publish(pose);

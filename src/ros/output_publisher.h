@@ -74,8 +74,9 @@ class OutputPublisher {
   /// An output is wanted: ~publish_tf is on, or a topic has a subscriber.
   bool wanted() const;
 
-  /// Publishes what `frame` gives (its estimate, when paired, and the integrated orientation).
-  /// False when the rotation into ~output_frame is not available yet: nothing is published.
+  /// Publishes what `frame` gives (its estimate, when paired, and the integrated orientation), its
+  /// stamps moved by ~time_offset. False when the rotation into ~output_frame is not available yet,
+  /// or a moved stamp would not be a positive time: nothing is published.
   bool publish(const FrameOutput& frame, const OutputSettings& settings);
   /// Forgets the integrated orientation and the yaw plot.
   void reset();

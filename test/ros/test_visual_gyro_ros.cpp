@@ -43,6 +43,8 @@ std::string g_image_topic = "/test_camera/image_raw";
 const char* kCameraFrame = "test_camera_optical";
 /// ~output_frame of the node under test ("" = the camera frame) and the rotation output <- camera.
 std::string g_output_frame;
+/// ~time_offset of the node under test [s]: every output stamp is the image's plus this.
+double g_time_offset = 0.0;
 Eigen::Matrix3d g_to_output = Eigen::Matrix3d::Identity();
 
 // The backend the node must report: CUDA exactly where this machine's CUDA backend works (the test
@@ -109,7 +111,7 @@ bool outputAdvertised() {
 /// The estimate whose current image has this stamp (its header carries the midpoint by default).
 const RotationEstimate* findRotation(const std::vector<RotationEstimate>& v, double image_stamp) {
   for (const auto& m : v)
-    if (std::abs(m.previous_stamp.toSec() + m.dt - image_stamp) < 1e-6) return &m;
+    if (std::abs(m.previous_stamp.toSec() - g_time_offset + m.dt - image_stamp) < 1e-6) return &m;
   return nullptr;
 }
 
@@ -165,9 +167,10 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
     ASSERT_NE(m, nullptr);
     EXPECT_TRUE(m->valid) << m->status;
     EXPECT_EQ(m->header.frame_id, expectedFrame());
-    EXPECT_NEAR(m->previous_stamp.toSec(), t0 + (k - 1) * dt, 1e-6);
+    EXPECT_NEAR(m->previous_stamp.toSec(), t0 + (k - 1) * dt + g_time_offset, 1e-6);
     EXPECT_NEAR(m->dt, dt, 1e-6);
-    EXPECT_NEAR(m->header.stamp.toSec(), t0 + (k - 0.5) * dt, 1e-6) << "default stamps: the images' midpoint";
+    EXPECT_NEAR(m->header.stamp.toSec(), t0 + (k - 0.5) * dt + g_time_offset, 1e-6)
+        << "default stamps: the images' midpoint (+ ~time_offset)";
     EXPECT_NEAR(m->yaw / kDeg, 1.0, 0.15) << "a right turn is a positive yaw";
     EXPECT_NEAR(m->pitch / kDeg, 0.0, 0.15);
     EXPECT_NEAR(m->roll / kDeg, 0.0, 0.15);
@@ -219,6 +222,8 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
   const auto poses = h.orientationMsgs();
   ASSERT_EQ(poses.size(), images.size());
   EXPECT_EQ(poses.back().header.frame_id, "visual_gyro_world");
+  for (size_t k = 0; k < poses.size(); ++k)
+    EXPECT_NEAR(poses[k].header.stamp.toSec(), t0 + k * dt + g_time_offset, 1e-6) << "the image's stamp (+ ~time_offset)";
   const Eigen::Matrix3d integrated = conv::fromMsg(poses.back().pose.orientation).toRotationMatrix();
   EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, inOutput(vgt::yawRight(images.size() - 1.0))) / kDeg, 0.5);
   EXPECT_LT(visual_gyro::rotationAngleBetween(conv::fromMsg(poses.front().pose.orientation).toRotationMatrix(),
@@ -246,7 +251,7 @@ TEST(VisualGyroRos, JumpBackInTimeAndLongGapReset) {
   EXPECT_EQ(findRotation(rotations, t_back), nullptr) << "an estimate across a jump back in time";
   const RotationEstimate* after = findRotation(rotations, t_back + 0.1);
   ASSERT_NE(after, nullptr);
-  EXPECT_NEAR(after->previous_stamp.toSec(), t_back, 1e-6);
+  EXPECT_NEAR(after->previous_stamp.toSec(), t_back + g_time_offset, 1e-6);
   EXPECT_TRUE(after->valid) << after->status;
   EXPECT_NEAR(after->yaw / kDeg, 1.0, 0.15);
   auto poses = h.orientationMsgs();
@@ -264,7 +269,7 @@ TEST(VisualGyroRos, JumpBackInTimeAndLongGapReset) {
   rotations = h.rotations();
   EXPECT_EQ(findRotation(rotations, t_gap), nullptr) << "an estimate across a 5 s gap";
   ASSERT_NE(findRotation(rotations, t_gap + 0.1), nullptr);
-  EXPECT_NEAR(findRotation(rotations, t_gap + 0.1)->previous_stamp.toSec(), t_gap, 1e-6);
+  EXPECT_NEAR(findRotation(rotations, t_gap + 0.1)->previous_stamp.toSec(), t_gap + g_time_offset, 1e-6);
 }
 
 TEST(VisualGyroRos, EqualStampIsSkipped) {
@@ -282,7 +287,7 @@ TEST(VisualGyroRos, EqualStampIsSkipped) {
   h.settle();
   const auto rotations = h.rotations();
   ASSERT_EQ(rotations.size(), 1u);
-  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0 + 0.1, 1e-6);
+  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0 + 0.1 + g_time_offset, 1e-6);
   EXPECT_NEAR(rotations[0].yaw / kDeg, 1.0, 0.15);
 }
 
@@ -335,7 +340,7 @@ TEST(VisualGyroRos, UnsupportedEncodingIsSkippedAndTheNodeKeepsRunning) {
   h.settle();
   const auto rotations = h.rotations();
   ASSERT_EQ(rotations.size(), 1u);
-  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0, 1e-6);
+  EXPECT_NEAR(rotations[0].previous_stamp.toSec(), t0 + g_time_offset, 1e-6);
   EXPECT_TRUE(rotations[0].valid) << rotations[0].status;
   EXPECT_NEAR(rotations[0].yaw / kDeg, 2.0, 0.2);
   EXPECT_TRUE(waitFor([&] { return diagnosed.load(); }, 5.0))
@@ -350,6 +355,7 @@ int main(int argc, char** argv) {
     pnh.param<std::string>("output_ns", g_output_ns, g_output_ns);
     pnh.param<std::string>("image_topic", g_image_topic, g_image_topic);
     pnh.param<std::string>("output_frame", g_output_frame, "");
+    pnh.param("time_offset", g_time_offset, 0.0);
     std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_tf;
     if (!g_output_frame.empty()) {
       // A body frame (REP 103: x forward, y left, z up) of the optical frame (x right, y down, z fwd).
