@@ -17,10 +17,8 @@
 
 namespace visual_gyro {
 namespace eval {
-namespace {
 
-/// Ground truth between images a < b: composed frame-to-frame rotations, dt-weighted mean rate.
-void fillTruth(const Sequence& seq, FramePair* p) {
+void fillPairTruth(const Sequence& seq, FramePair* p) {
   Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
   bool ok = true;
   for (size_t k = p->previous_index + 1; k <= p->index && ok; ++k) {
@@ -56,6 +54,8 @@ void fillTruth(const Sequence& seq, FramePair* p) {
     if (p->truth.has_rate) p->truth.rate = sum / weight;
   }
 }
+
+namespace {
 
 /// 0..n-1 in a deterministic random order.
 std::vector<size_t> shuffledIndices(size_t n, SplitMix64* rng) {
@@ -171,7 +171,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
     p.matching = r.matching;
     p.tracked = r.tracked;
     p.half_resolution = r.half_resolution;
-    fillTruth(seq, &p);
+    fillPairTruth(seq, &p);
     subsampleMatches(o.max_matches, o.seed, &p);
     injectOutliers(o.outliers, o.seed, angle_per_px, &p);
     if (progress) {

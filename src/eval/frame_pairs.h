@@ -60,6 +60,11 @@ struct FramePairOptions {
 std::vector<FramePair> collectFramePairs(const Sequence& sequence, const VisualGyroSettings& settings,
                                          const FramePairOptions& options);
 
+/// The pair's reference from the sequence's truth (its truth field and true_translation): the
+/// composed frame-to-frame rotations between its images and, for a gyro or EuRoC poses, the
+/// dt-weighted mean rate.
+void fillPairTruth(const Sequence& sequence, FramePair* pair);
+
 /// Keeps a deterministic random subset of at most max_matches matches.
 void subsampleMatches(int max_matches, uint64_t seed, FramePair* pair);
 

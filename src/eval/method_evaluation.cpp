@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
+#include "imu_alignment_report.h"
 #include "json_writer.h"
 #include "visual_gyro/geometry.h"
 
@@ -21,11 +23,10 @@ std::string fmt(double v, int decimals = 3) {
 
 }  // namespace
 
-MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, const std::vector<FramePair>& pairs) {
+MethodSummary runMethod(const std::string& method, MethodRunner* runner, const std::vector<FramePair>& pairs) {
   MethodSummary s;
   s.method = method;
   s.backend = runner->backend();
-  metrics::AccuracyAccumulator accuracy;
   double true_trans_sum = 0;
   int true_trans_n = 0;
   for (const FramePair& p : pairs) {
@@ -34,19 +35,16 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
       ++true_trans_n;
     }
     const MethodEstimate e = runner->run(p);
-    metrics::FrameEstimate scored;
-    scored.valid = e.valid;
-    scored.rotation = e.rotation;
-    scored.dt = p.dt;
-    scored.has_covariance = e.has_covariance;
-    scored.covariance = e.covariance;
     FrameRow row;
+    row.estimate.valid = e.valid;
+    row.estimate.rotation = e.rotation;
+    row.estimate.dt = p.dt;
+    row.estimate.has_covariance = e.has_covariance;
+    row.estimate.covariance = e.covariance;
     row.frame = p.index;
     row.matches = static_cast<int>(p.previous.size());
     row.valid = e.valid;
     row.estimate_ms = e.estimate_ms;
-    row.errors = metrics::scoreFrame(scored, p.truth);
-    accuracy.add(e.valid, row.errors, p.truth);
     row.inliers = e.inliers;
     row.pure_rotation = e.pure_rotation;
     row.translation = e.translation;
@@ -73,7 +71,6 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
     if (p.half_resolution) ++s.half_resolution_pairs;
     s.rows.push_back(row);
   }
-  s.accuracy = accuracy.summary();
   if (!pairs.empty()) {
     const double n = static_cast<double>(pairs.size());
     s.detect /= n;
@@ -90,6 +87,56 @@ MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, co
   }
   if (true_trans_n > 0) s.true_translation_mean = true_trans_sum / true_trans_n;
   return s;
+}
+
+void scoreMethod(const std::vector<FramePair>& pairs, MethodSummary* summary) {
+  if (pairs.size() != summary->rows.size())
+    throw std::invalid_argument("scoreMethod: " + std::to_string(summary->rows.size()) + " rows for " +
+                                std::to_string(pairs.size()) + " pairs");
+  metrics::AccuracyAccumulator accuracy;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    FrameRow& row = summary->rows[k];
+    row.errors = metrics::scoreFrame(row.estimate, pairs[k].truth);
+    accuracy.add(row.valid, row.errors, pairs[k].truth);
+  }
+  summary->accuracy = accuracy.summary();
+}
+
+MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, const std::vector<FramePair>& pairs) {
+  MethodSummary s = runMethod(method, runner, pairs);
+  scoreMethod(pairs, &s);
+  return s;
+}
+
+ImuAlignment alignGyroTruth(const Sequence& seq, size_t reference, std::vector<FramePair>* pairs,
+                            std::vector<MethodSummary>* summaries) {
+  const MethodSummary& by = summaries->at(reference);
+  std::vector<VisualRate> rates;
+  for (size_t k = 0; k < pairs->size() && k < by.rows.size(); ++k) {
+    const FramePair& p = (*pairs)[k];
+    const FrameRow& row = by.rows[k];
+    VisualRate rate;
+    rate.start = seq.stamps[p.previous_index];
+    rate.end = seq.stamps[p.index];
+    rate.valid = row.valid && p.dt > 0.0;
+    if (rate.valid) {
+      rate.rate = so3Log(row.estimate.rotation) / p.dt;
+      const double pixel = 1.0 / seq.camera.fx();  // [rad]
+      rate.covariance = (row.estimate.has_covariance ? row.estimate.covariance
+                                                     : Eigen::Matrix3d(pixel * pixel * Eigen::Matrix3d::Identity())) /
+                        (p.dt * p.dt);
+    }
+    rates.push_back(rate);
+  }
+  ImuAlignmentSettings settings;
+  settings.rotation_known = true;
+  settings.known_imu_from_camera = seq.body_from_camera;
+  const ImuAlignment alignment = alignImu(rates, seq.gyro, settings);
+  Sequence aligned = seq;
+  aligned.gyro = alignedGyro(seq.gyro, alignment);
+  for (FramePair& p : *pairs) fillPairTruth(aligned, &p);
+  for (MethodSummary& s : *summaries) scoreMethod(*pairs, &s);
+  return alignment;
 }
 
 std::string summaryText(const RunDescription& run, const MethodSummary& s) {
@@ -110,9 +157,15 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   out << "   rotation error  RMSE " << fmt(a.rot_rmse_deg) << " deg, max " << fmt(a.rot_max_deg) << " deg\n";
   out << "   yaw error       RMSE " << fmt(a.yaw_rmse_deg) << " deg, max " << fmt(a.yaw_max_deg) << " deg\n";
   out << "   rate            mean " << fmt(a.mean_rate_dps) << " deg/s";
-  if (std::isfinite(a.rate_rmse_dps) && run.truth == "gyro") {
-    // The loader integrates the raw gyro (bias included), so on a static stretch the reference
-    // itself reads the bias; its mean is shown to make that visible.
+  if (std::isfinite(a.rate_rmse_dps) && run.truth == "gyro" && run.gyro_alignment != nullptr) {
+    const ImuAlignment& g = *run.gyro_alignment;
+    out << ", RMSE vs gyro " << fmt(a.rate_rmse_dps) << " deg/s (gyro aligned: bias " << fmt(g.gyro_bias.x(), 4)
+        << " " << fmt(g.gyro_bias.y(), 4) << " " << fmt(g.gyro_bias.z(), 4) << " rad/s removed, offset "
+        << (g.offset_observable ? fmt(g.time_offset * 1e3) + " ms" : std::string("not observable (0)"))
+        << "; mean |rate| " << fmt(a.true_rate_mean_dps) << " deg/s)";
+  } else if (std::isfinite(a.rate_rmse_dps) && run.truth == "gyro") {
+    // The raw gyro (bias included): on a static stretch the reference itself reads the bias; its
+    // mean is shown to make that visible.
     out << ", RMSE vs gyro " << fmt(a.rate_rmse_dps) << " deg/s (gyro: raw, bias not removed, mean |rate| "
         << fmt(a.true_rate_mean_dps) << " deg/s)";
   } else if (std::isfinite(a.rate_rmse_dps)) {
@@ -171,7 +224,9 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("true_rot_mean_deg", a.true_rotation_mean_deg)
       .add("true_trans_mean_m", s.true_translation_mean)
       .add("gyro_mean_rate_dps", a.true_rate_mean_dps)
-      .add("truth", run.truth)
+      .add("truth", run.truth);
+  addAlignmentSummary(run.gyro_alignment, &j);
+  j.add("gyro_aligned", run.gyro_alignment != nullptr)
       .add("nees_mean", a.nees_mean)
       .add("nees_beyond_99", a.nees_beyond99);
   return j.str();

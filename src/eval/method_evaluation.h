@@ -9,6 +9,7 @@
 #include "frame_pairs.h"
 #include "method_runners.h"
 #include "metrics.h"
+#include "visual_gyro/imu_alignment.h"
 
 namespace visual_gyro {
 namespace eval {
@@ -19,6 +20,7 @@ struct FrameRow {
   int matches = 0;
   bool valid = false;
   double estimate_ms = 0.0;
+  metrics::FrameEstimate estimate;  ///< what the method gave, as the metrics module scores it
   metrics::FrameErrors errors;  ///< scored as the metrics module does (invalid = identity)
   double sigma_deg = std::numeric_limits<double>::quiet_NaN();  ///< sqrt(trace C) [deg]
   /// Standard deviations the covariance gives each axis [deg].
@@ -49,8 +51,22 @@ struct MethodSummary {
   int half_resolution_pairs = 0;  ///< native: pairs matched at half resolution (starved at full)
 };
 
-/// Runs `runner` over `pairs` in order and scores every frame.
+/// Runs `runner` over `pairs` in order: every row's estimate, times and diagnostics, not scored.
+MethodSummary runMethod(const std::string& method, MethodRunner* runner, const std::vector<FramePair>& pairs);
+/// Scores every row of `summary` against the truth of its pair (rows in the pairs' order): the
+/// rows' errors and the accuracy summary. Throws std::invalid_argument when the counts differ.
+void scoreMethod(const std::vector<FramePair>& pairs, MethodSummary* summary);
+/// runMethod, then scoreMethod.
 MethodSummary evaluateMethod(const std::string& method, MethodRunner* runner, const std::vector<FramePair>& pairs);
+
+/// For a sequence whose truth is its gyro (bias included, on the IMU's clock): aligns the gyro with
+/// the estimates of summaries[reference] (alignImu; the sequence's camera-IMU rotation, EuRoC's
+/// T_BS, taken as known; offset and bias estimated; a method without covariances counts each
+/// frame as uncertain by one pixel), recomputes every pair's truth from the aligned gyro
+/// (alignedGyro) and rescores every summary. Returns the alignment. Throws ImuAlignmentError when
+/// the gyro cannot be aligned (too few valid frames, ...); nothing is changed then.
+ImuAlignment alignGyroTruth(const Sequence& sequence, size_t reference, std::vector<FramePair>* pairs,
+                            std::vector<MethodSummary>* summaries);
 
 /// What a report says about the run besides the summary.
 struct RunDescription {
@@ -59,6 +75,9 @@ struct RunDescription {
   ImageDegradation degradation;        ///< applied to the images before the front end
   int stride = 1;
   int hypotheses = 0;                  ///< per frame (vote, paper)
+  /// For a gyro reference: the alignment removed from it (offset and bias); null when the gyro is
+  /// scored as recorded, or the truth is not a gyro.
+  const ImuAlignment* gyro_alignment = nullptr;
 };
 
 /// The readable summary of one method.
