@@ -17,6 +17,7 @@
 #include "compressed_input.h"
 #include "metrics.h"
 #include "visual_gyro/RotationEstimate.h"
+#include "visual_gyro/imu_alignment.h"
 #include "visual_gyro/sequence.h"
 
 namespace visual_gyro {
@@ -89,6 +90,10 @@ struct OutputSummary {
   int imu_published = 0;   ///< Imu messages
   double detect_ms = NAN, describe_ms = NAN, match_ms = NAN, align_ms = NAN, estimate_ms = NAN, total_ms = NAN;
   double latency_ms = NAN;  ///< mean image-callback-to-publish wall time
+  /// A gyro reference (a bag without poses) was aligned with the estimates first, as `evaluate`
+  /// aligns it (eval::alignGyroTruth): gyro_alignment's offset and bias are removed from it.
+  bool gyro_aligned = false;
+  ImuAlignment gyro_alignment;
 
   /// One JSON object on one line (NaN -> null).
   std::string json() const;
@@ -99,7 +104,8 @@ struct OutputSummary {
 /// Compares estimates (rotation in the camera optical frame, as published without ~output_frame)
 /// with the truth in `truth`: per message R_true = R_gt(prev)^T R_gt(cur) from the poses, or, when
 /// there are none, the gyro integrated between the two stamps and rotated into the camera frame with
-/// the /tf_static rotation. Scored with the metrics module, exactly as `evaluate` scores: an invalid
+/// the /tf_static rotation, after its bias and clock offset are removed (alignImu against the
+/// estimates, the /tf_static rotation taken as known; the raw gyro when that fails). Scored with the metrics module, exactly as `evaluate` scores: an invalid
 /// estimate counts as the identity; rotation error = angle of R_est^T R_true; yaw error =
 /// difference of the yaws (about the camera's y axis, R = Ry Rx Rz).
 OutputSummary evaluateOutputs(const std::vector<visual_gyro::RotationEstimate>& estimates, int imu_count,

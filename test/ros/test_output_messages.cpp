@@ -1,12 +1,16 @@
 // The nodelet's output messages without a master: an invalid estimate is the identity with a zero
 // rate (as the offline evaluation scores it), the Imu policy for invalid estimates, the output
-// frame rotation of rates and covariances.
+// frame rotation of rates and covariances; and how recorded outputs are scored against a gyro.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 
+#include <cmath>
+
+#include "bag_tools.h"
 #include "output_publisher.h"
 #include "ros_conversions.h"
+#include "visual_gyro/geometry.h"
 
 namespace {
 
@@ -99,3 +103,51 @@ TEST(OutputMessages, OutputFrameRotatesRateAndCovariance) {
 }
 
 }  // namespace
+
+// A bag whose reference is a gyro (no poses), with a bias and 5 ms late: the recorded estimates
+// are scored after the gyro is aligned with them, as evaluate scores, so exact estimates score
+// (almost) zero; the raw gyro's bias alone would be 0.06 deg per 50 ms pair.
+TEST(EvaluateOutputs, GyroReferenceIsAlignedBeforeScoring) {
+  const auto rate = [](double t) {
+    return Eigen::Vector3d(0.3 * std::sin(2.0 * M_PI * t), 0.2 * std::cos(3.0 * t), 0.1 * std::sin(5.0 * t));
+  };
+  const Eigen::Vector3d bias(0.02, -0.01, 0.015);
+  const double offset = 0.005;
+  visual_gyro::bag_tools::BagContents bag;
+  for (int i = 0; i <= 800; ++i) {
+    const double t = 10.0 + i / 200.0;
+    sensor_msgs::ImuPtr imu(new sensor_msgs::Imu);
+    imu->header.stamp.fromSec(t + offset);
+    const Eigen::Vector3d w = rate(t) + bias;
+    imu->angular_velocity.x = w.x();
+    imu->angular_velocity.y = w.y();
+    imu->angular_velocity.z = w.z();
+    bag.gyro.push_back(imu);
+  }
+  std::vector<visual_gyro::RotationEstimate> estimates;
+  const double dt = 0.05;
+  for (double t0 = 10.5; t0 + dt <= 13.5; t0 += dt) {
+    Eigen::Matrix3d r = Eigen::Matrix3d::Identity();  // the true rotation over [t0, t0 + dt]
+    for (int k = 0; k < 100; ++k) r = r * visual_gyro::so3Exp(rate(t0 + (k + 0.5) * dt / 100) * dt / 100);
+    visual_gyro::RotationEstimate e;
+    e.previous_stamp.fromSec(t0);
+    e.dt = dt;
+    e.valid = true;
+    e.rotation = visual_gyro::ros_conversions::toMsg(Eigen::Quaterniond(r));
+    const Eigen::Vector3d w = visual_gyro::so3Log(r) / dt;
+    e.angular_velocity.x = w.x();
+    e.angular_velocity.y = w.y();
+    e.angular_velocity.z = w.z();
+    for (int i = 0; i < 9; ++i) e.angular_velocity_covariance[i] = i % 4 == 0 ? 1e-6 : 0.0;
+    estimates.push_back(e);
+  }
+  const auto s = visual_gyro::bag_tools::evaluateOutputs(estimates, 0, bag, "synthetic");
+  ASSERT_TRUE(s.gyro_aligned);
+  EXPECT_LT((s.gyro_alignment.gyro_bias - bias).norm(), 1e-3);
+  ASSERT_TRUE(s.gyro_alignment.offset_observable);
+  EXPECT_NEAR(s.gyro_alignment.time_offset, offset, 5e-4);
+  EXPECT_EQ(s.accuracy.with_truth, static_cast<int>(estimates.size()));
+  EXPECT_LT(s.accuracy.rot_rmse_deg, 0.005);
+  EXPECT_NE(s.json().find("\"gyro_aligned\": true"), std::string::npos) << s.json();
+  EXPECT_NE(s.json().find("\"gyro_bias_rad_s\": ["), std::string::npos) << s.json();
+}
