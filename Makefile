@@ -6,7 +6,7 @@ DATA ?=
 METHOD ?= vote
 export CUDA DATA METHOD
 
-.PHONY: all deps build demo test eval bench sanitize soak fuzz clean
+.PHONY: all deps build demo test eval calibrate bench sanitize soak fuzz clean
 
 all: build
 
@@ -25,6 +25,14 @@ test: build
 eval: build
 	@if [[ -z "$(DATA)" ]]; then echo "usage: make eval DATA=<sequence folder> [METHOD=vote|paper|essential5|fundamental8|...]"; exit 2; fi
 	@scripts/eval.sh
+
+# Camera-IMU alignment of one recording (EuRoC folder with imu0/, or a bag: IMAGE_TOPIC, IMU_TOPIC).
+IMAGE_TOPIC ?=
+IMU_TOPIC ?=
+export IMAGE_TOPIC IMU_TOPIC
+calibrate: build
+	@if [[ -z "$(DATA)" ]]; then echo "usage: make calibrate DATA=<EuRoC folder | file.bag> [IMAGE_TOPIC=... IMU_TOPIC=...]"; exit 2; fi
+	@scripts/calibrate.sh
 
 bench: build
 	@scripts/bench.sh

@@ -446,7 +446,8 @@ std::vector<Frame> usableFrames(const std::vector<VisualRate>& rates, const Gyro
 
 void checkSettings(const ImuAlignmentSettings& s) {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  if (!positive(s.max_offset)) throw std::invalid_argument("alignImu: max_offset must be > 0, got " + text(s.max_offset));
+  if (!positive(s.max_offset))
+    throw std::invalid_argument("alignImu: max_offset must be > 0, got " + text(s.max_offset));
   if (!positive(s.huber_threshold)) throw std::invalid_argument("alignImu: huber_threshold must be > 0");
   if (!(s.min_explained >= 0.0 && s.min_explained < 1.0))
     throw std::invalid_argument("alignImu: min_explained must lie in [0, 1)");

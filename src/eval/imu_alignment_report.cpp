@@ -84,7 +84,10 @@ std::string alignmentText(const ImuAlignment& a, const AlignmentSource& source) 
     out << "not observable\n";
   }
   const double reference = referenceRotationErrorDeg(a, source);
-  if (std::isfinite(reference)) out << "                   " << fixed(reference, 3) << " deg from the data's own (EuRoC T_BS, or the bag's /tf_static)\n";
+  if (std::isfinite(reference)) {
+    out << "                   " << fixed(reference, 3)
+        << " deg from the data's own (EuRoC T_BS, or the bag's /tf_static)\n";
+  }
   out << "   gyro bias       " << triple(a.gyro_bias, 5) << " rad/s (IMU frame) +- " << triple(a.gyro_bias_sigma, 5)
       << "\n";
   if (a.has_scale && a.motion)

@@ -124,7 +124,8 @@ bool OutputPublisher::publish(const FrameOutput& frame, const OutputSettings& se
   if (!have_output_frame) return false;  // outputRotation warned
   // On the IMU's clock; a zero shift leaves every stamp exactly as computed.
   const ros::Duration shift(params_.time_offset);
-  if (!(stamp + params_.time_offset > 0.0) || (frame.had_previous && !(frame.previous_stamp + params_.time_offset > 0.0))) {
+  const double first_stamp = frame.had_previous ? frame.previous_stamp : stamp;
+  if (!(first_stamp + params_.time_offset > 0.0)) {
     ROS_ERROR_THROTTLE(10.0, "visual_gyro: image stamp %.6f s + ~time_offset %.6f s is not a positive time; outputs "
                        "held back", stamp, params_.time_offset);
     return false;

@@ -137,7 +137,8 @@ class RateCollector {
       if (gyro_) {
         gyro_->setCamera(camera);
       } else {
-        gyro_.reset(new VisualGyro(camera, settings_, [](const std::string& w) { std::cerr << "warning: " << w << "\n"; }));
+        const WarningSink warn = [](const std::string& w) { std::cerr << "warning: " << w << "\n"; };
+        gyro_.reset(new VisualGyro(camera, settings_, warn));
       }
     }
     const FrameResult result = gyro_->processFrame(gray, stamp);
@@ -207,7 +208,8 @@ std::vector<GyroSample> runBag(const Options& o, RateCollector* collector, eval:
         if (o.frames < 0 || taken++ < o.frames) collector->add(gray, stamp, camera);
       },
       &problem);
-  if (skipped > 0) std::fprintf(stderr, "[calibrate_imu] %d image(s) not decoded (first: %s)\n", skipped, problem.c_str());
+  if (skipped > 0)
+    std::fprintf(stderr, "[calibrate_imu] %d image(s) not decoded (first: %s)\n", skipped, problem.c_str());
   source->dataset = o.input.substr(o.input.find_last_of('/') + 1);
   source->camera_frame = !o.camera_frame.empty() ? o.camera_frame
                          : scan.camera_frame.empty() ? "camera_optical" : scan.camera_frame;

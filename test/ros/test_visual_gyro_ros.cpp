@@ -223,7 +223,8 @@ TEST(VisualGyroRos, RightTurnGivesPositiveYawRateWithCovariances) {
   ASSERT_EQ(poses.size(), images.size());
   EXPECT_EQ(poses.back().header.frame_id, "visual_gyro_world");
   for (size_t k = 0; k < poses.size(); ++k)
-    EXPECT_NEAR(poses[k].header.stamp.toSec(), t0 + k * dt + g_time_offset, 1e-6) << "the image's stamp (+ ~time_offset)";
+    EXPECT_NEAR(poses[k].header.stamp.toSec(), t0 + k * dt + g_time_offset, 1e-6)
+        << "the image's stamp (+ ~time_offset)";
   const Eigen::Matrix3d integrated = conv::fromMsg(poses.back().pose.orientation).toRotationMatrix();
   EXPECT_LT(visual_gyro::rotationAngleBetween(integrated, inOutput(vgt::yawRight(images.size() - 1.0))) / kDeg, 0.5);
   EXPECT_LT(visual_gyro::rotationAngleBetween(conv::fromMsg(poses.front().pose.orientation).toRotationMatrix(),
