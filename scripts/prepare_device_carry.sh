@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Fills .device_carry/ (git-ignored) with what the GPU machine needs and lacks, for
-# `run(command="scripts/gpu_bench.sh", carry=[".device_carry"])`:
+# Fills .device_carry/ (git-ignored) with what a GPU machine needs and lacks for
+# scripts/gpu_bench.sh; copy it there with the working tree:
 #   bearings/<sequence>.txt  matched bearings (+ dt, true rotation) of the shared sequences present,
 #                            exported by `evaluate --export-bearings` (needs `make build` first);
 #   eigen3/Eigen/            Eigen's headers, for cuda_estimator_check (the GPU machine has no Eigen).
