@@ -40,7 +40,7 @@ void usage() {
       "  --device D               CUDA device (default 0)\n"
       "  --require-gpu            exit 2 when no CUDA device works (default: skip the GPU part)\n"
       "  --edge-margin R          bin-edge margin of the rule [rad] (default 1e-4)\n"
-      "  --max-mismatch-fraction F  (default 1e-3)\n"
+      "  --max-explained-fraction F  hypotheses that may change cell for explained reasons (default 1e-2)\n"
       "  --csv PATH               one row per frame and grid\n"
       "  --write-synthetic PATH   write the synthetic frames as a bearing file\n";
 }
@@ -87,8 +87,8 @@ int main(int argc, char** argv) {
         require_gpu = true;
       } else if (arg == "--edge-margin") {
         compare.edge_margin = args.doubleValue(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
-      } else if (arg == "--max-mismatch-fraction") {
-        compare.max_mismatch_fraction = args.doubleValue(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
+      } else if (arg == "--max-explained-fraction") {
+        compare.max_explained_fraction = args.doubleValue(0.0, 1.0);
       } else if (arg == "--csv") {
         csv_path = args.value();
       } else if (arg == "--write-synthetic") {
@@ -167,8 +167,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "cuda_voter_check: cannot write %s\n", csv_path.c_str());
       return 1;
     }
-    std::fprintf(csv, "input,frame,grid,matches,hypotheses,cpu_accepted,cpu_winner,gpu_winner,mismatched,near_edge,"
-                      "near_threshold,ill_conditioned,unexplained,max_value_diff_rad,max_scaled_diff_rad,cpu_ms,gpu_call_ms,gpu_device_ms,status\n");
+    std::fprintf(csv, "input,frame,grid,matches,cpu_accepted,%s,max_value_diff_rad,max_scaled_diff_rad,cpu_ms,gpu_call_ms,"
+                      "gpu_device_ms,status\n", cellDifferencesCsvHeader().c_str());
   }
 
   uint64_t total_passed = 0, total_failed = 0, total_skipped = 0;
@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
           t.unexplained += r.unexplained;
           t.max_value_difference = std::max(t.max_value_difference, r.max_value_difference);
           t.max_scaled_difference = std::max(t.max_scaled_difference, r.max_scaled_difference);
-          if (r.winner_equal) ++t.winners_equal;
+          if (r.winnersEqual()) ++t.winners_equal;
           if (r.passed()) {
             status = "passed";
             ++t.passed;
@@ -251,14 +251,16 @@ int main(int argc, char** argv) {
           ++t.skipped;
           ++total_skipped;
         }
-        if (csv != nullptr)
-          std::fprintf(csv, "%s,%lld,%s,%u,%u,%u,%d,%d,%llu,%llu,%llu,%llu,%llu,%.3g,%.3g,%.4f,%.4f,%.4f,%s\n",
-                       input.first.c_str(), static_cast<long long>(frame.index), gridName(kind), n, hypotheses,
-                       c.accepted, c.winner, gpu ? g.winner : -1, static_cast<unsigned long long>(r.mismatched),
-                       static_cast<unsigned long long>(r.near_edge), static_cast<unsigned long long>(r.near_threshold),
-                       static_cast<unsigned long long>(r.ill_conditioned), static_cast<unsigned long long>(r.unexplained),
-                       r.max_value_difference, r.max_scaled_difference, cpu_ms, gpu_ms,
+        if (csv != nullptr) {
+          if (!gpu) {  // the CPU's side only
+            r.hypotheses = hypotheses;
+            r.cpu_winner = c.winner;
+          }
+          std::fprintf(csv, "%s,%lld,%s,%u,%u,%s,%.3g,%.3g,%.4f,%.4f,%.4f,%s\n", input.first.c_str(),
+                       static_cast<long long>(frame.index), gridName(kind), n, c.accepted,
+                       cellDifferencesCsv(r).c_str(), r.max_value_difference, r.max_scaled_difference, cpu_ms, gpu_ms,
                        device_ms, status.c_str());
+        }
       }
     }
     for (const auto& entry : totals) {
@@ -290,11 +292,7 @@ int main(int argc, char** argv) {
   if (truth_frames > 0)
     std::printf("CPU gold sanity: synthetic yaw winner within 0.2 deg of the true yaw in %llu/%llu frames\n",
                 static_cast<unsigned long long>(truth_hits), static_cast<unsigned long long>(truth_frames));
-  std::printf("rule: CPU and GPU values of a hypothesis agree within %.1e rad / (sv1/sv0 of its H); a hypothesis may"
-              " change cell only when a value is within %.1e rad of a bin edge (or the tolerated difference straddles"
-              " one) or a degeneracy test is within %.1e (relative) of its threshold, for at most %.1e of the"
-              " hypotheses; the GPU histogram, counters and winner equal those of its own records exactly\n",
-              compare.value_scale, compare.edge_margin, compare.threshold_margin, compare.max_mismatch_fraction);
+  std::printf("rule: %s\n", describeRule(compare).c_str());
   if (gpu) {
     const CudaVoterStats s = cudaVoterStats(*gpu);
     std::printf("CUDA voter: %llu frames, %llu buffer reallocations after construction, %.1f MiB device memory\n",
