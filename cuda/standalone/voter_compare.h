@@ -351,27 +351,12 @@ inline bool nearThreshold(const VoteRequest& q, uint32_t h, double margin) {
   return false;
 }
 
-}  // namespace detail
-
-/// Compares `gpu` against the gold `cpu` result for `request` (both computed with keep_records).
-inline CompareReport compareVotes(const VoteRequest& request, const VoteResult& cpu, const VoteResult& gpu,
-                                  const CompareOptions& options = CompareOptions()) {
-  CompareReport report;
-  report.hypotheses = request.hypotheses;
-  const int32_t cells = hyp::cellCount(request.grid);
-  auto problem = [&report](const std::string& text) { report.problems.push_back(text); };
-  if (cpu.histogram.size() != static_cast<size_t>(cells) || gpu.histogram.size() != static_cast<size_t>(cells) ||
-      gpu.cell_sums.size() != 3 * static_cast<size_t>(cells)) {
-    problem("histogram or cell_sums of the wrong size");
-    return report;
-  }
-  if (cpu.records.size() != request.hypotheses || gpu.records.size() != request.hypotheses) {
-    problem("records missing (both voters need keep_records)");
-    return report;
-  }
-
-  // The GPU's own consistency: its atomics, block merges and argmax must reproduce exactly what
-  // its per-hypothesis records imply.
+/// The GPU's own consistency: its atomics, block merges and argmax must reproduce exactly what its
+/// per-hypothesis records imply. Appends the broken rules to *problems; false when a record's cell
+/// is out of range (nothing else can be compared then).
+inline bool gpuSelfConsistent(const VoteRequest& request, const VoteResult& gpu, int32_t cells,
+                              std::vector<std::string>* problems) {
+  auto problem = [problems](const std::string& text) { problems->push_back(text); };
   std::vector<int32_t> rebuilt(cells, 0);
   std::vector<double> sums(3 * static_cast<size_t>(cells), 0.0), abs_sums(3 * static_cast<size_t>(cells), 0.0);
   uint32_t gpu_accepted = 0;
@@ -379,7 +364,7 @@ inline CompareReport compareVotes(const VoteRequest& request, const VoteResult& 
     if (r.cell < 0) continue;
     if (r.cell >= cells) {
       problem("GPU record with cell out of range");
-      return report;
+      return false;
     }
     ++rebuilt[r.cell];
     ++gpu_accepted;
@@ -401,6 +386,29 @@ inline CompareReport compareVotes(const VoteRequest& request, const VoteResult& 
   for (size_t i = 0; i < sums.size(); ++i)
     if (std::fabs(gpu.cell_sums[i] - sums[i]) > 2e-5 * abs_sums[i] + 1e-6) ++bad_sums;
   if (bad_sums) problem(std::to_string(bad_sums) + " GPU cell sums differ from the sums of its records");
+  return true;
+}
+
+}  // namespace detail
+
+/// Compares `gpu` against the gold `cpu` result for `request` (both computed with keep_records).
+inline CompareReport compareVotes(const VoteRequest& request, const VoteResult& cpu, const VoteResult& gpu,
+                                  const CompareOptions& options = CompareOptions()) {
+  CompareReport report;
+  report.hypotheses = request.hypotheses;
+  const int32_t cells = hyp::cellCount(request.grid);
+  auto problem = [&report](const std::string& text) { report.problems.push_back(text); };
+  if (cpu.histogram.size() != static_cast<size_t>(cells) || gpu.histogram.size() != static_cast<size_t>(cells) ||
+      gpu.cell_sums.size() != 3 * static_cast<size_t>(cells)) {
+    problem("histogram or cell_sums of the wrong size");
+    return report;
+  }
+  if (cpu.records.size() != request.hypotheses || gpu.records.size() != request.hypotheses) {
+    problem("records missing (both voters need keep_records)");
+    return report;
+  }
+
+  if (!detail::gpuSelfConsistent(request, gpu, cells, &report.problems)) return report;
 
   // CPU versus GPU, hypothesis by hypothesis.
   for (uint32_t h = 0; h < request.hypotheses; ++h) {
