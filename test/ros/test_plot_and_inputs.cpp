@@ -194,10 +194,15 @@ TEST(YawPlot, DefaultsAgreeWithYamlAndRosDoc) {
   ASSERT_TRUE(doc.good()) << "cannot read doc/ros.md";
   std::stringstream text;
   text << doc.rdbuf();
-  std::ostringstream row;
-  row << "| `plot_window`, `plot_width`, `plot_height`, `plot_points` | " << defaults.window << " s, "
-      << defaults.width << " m, " << defaults.height << " m, " << defaults.max_points << " |";
-  EXPECT_NE(text.str().find(row.str()), std::string::npos) << "doc/ros.md has no row " << row.str();
+  const std::pair<const char*, double> rows[] = {{"plot_window", defaults.window},
+                                                 {"plot_width", defaults.width},
+                                                 {"plot_height", defaults.height},
+                                                 {"plot_points", static_cast<double>(defaults.max_points)}};
+  for (const auto& [name, value] : rows) {
+    std::ostringstream row;
+    row << "| `" << name << "` | " << value << " |";
+    EXPECT_NE(text.str().find(row.str()), std::string::npos) << "doc/ros.md has no row " << row.str();
+  }
 }
 
 std::string fileText(const std::string& relative) {
