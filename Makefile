@@ -6,7 +6,7 @@ DATA ?=
 METHOD ?= vote
 export CUDA DATA METHOD
 
-.PHONY: all deps build demo test eval calibrate bench sanitize soak fuzz clean
+.PHONY: all deps build demo test eval calibrate bench sanitize soak fuzz clean settings-files
 
 all: build
 
@@ -21,6 +21,11 @@ demo: build
 
 test: build
 	@scripts/run_tests.sh
+
+# cfg/VisualGyro.cfg, config/visual_gyro.yaml and the settings tables of README.md and doc/ros.md,
+# generated from the settings tables (test_settings_consistency fails when a copy differs).
+settings-files: build
+	@scripts/generate_settings_files.sh
 
 eval: build
 	@if [[ -z "$(DATA)" ]]; then echo "usage: make eval DATA=<sequence folder> [METHOD=vote|paper|essential5|fundamental8|...]"; exit 2; fi

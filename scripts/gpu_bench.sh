@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# The one command a session with a GPU runs on the device machine (nvcc, CMake, Python; no ROS,
-# OpenCV or Eigen): builds cuda/ stand-alone, checks the CUDA voter against the CPU gold voter on the
-# carried bearing files (.device_carry/bearings/*.txt, made by scripts/prepare_device_carry.sh) and
-# on synthetic frames, checks the whole estimator on both backends against the files' truth (with
-# the carried Eigen headers, .device_carry/eigen3), runs the sanitizers on a small case, and times
-# both voters. Results go to ${OUT:-out/gpu}.
+# The one command to run on a machine with a GPU (it needs nvcc, CMake and Python; no ROS, OpenCV
+# or Eigen): builds cuda/ stand-alone, checks the CUDA voter against the CPU gold voter on the
+# bearing files in .device_carry/bearings/*.txt (made by scripts/prepare_device_carry.sh) and on
+# synthetic frames, checks the whole estimator on both backends against the files' truth (with
+# Eigen's headers from .device_carry/eigen3 when the machine has none), runs the sanitizers on a
+# small case, and times both voters.
 #
 #   scripts/gpu_bench.sh                 # everything
 #   QUICK=1 scripts/gpu_bench.sh         # smoke test: fewer frames and benchmark points
@@ -12,9 +12,9 @@
 #   ALLOW_NO_GPU=1 scripts/gpu_bench.sh  # on a machine without GPU: CPU gold parts only, no failure
 #
 # Files go to ${GPU_BENCH_OUT:-out/gpu} (console.log, environment.txt, build.log, check_*, sanitizer_*,
-# bench_*). On the device machine, where $OUT is the folder that comes back (at most 8 files), the
-# whole folder is also packed into $OUT/gpu_bench.tar.gz with console.log beside it; unpack it here
-# with `mkdir -p out/gpu && tar xzf <files_at>/gpu_bench.tar.gz -C out/gpu` for `make bench`.
+# bench_*). When GPU_BENCH_PACK names a folder, the output folder is also packed into
+# ${GPU_BENCH_PACK}/gpu_bench.tar.gz with console.log beside it, for copying back in two files; unpack
+# it with `mkdir -p out/gpu && tar xzf gpu_bench.tar.gz -C out/gpu` for `make bench`.
 #
 # Exit status: 0 when every check passed, 1 otherwise (the benchmarks still run).
 set -uo pipefail
@@ -79,7 +79,7 @@ else
   frames_opt=(); synthetic=32; bench_opt=()
 fi
 
-# 1. CPU/GPU equivalence on the real sequences' matches, when the session carried them.
+# 1. CPU/GPU equivalence on the real sequences' matches, when they were exported.
 shopt -s nullglob
 files=(.device_carry/bearings/*.txt)
 if (( ${#files[@]} )); then
@@ -93,7 +93,7 @@ if (( ${#files[@]} )) && [[ -x ${estimator_check} ]]; then
   run check_estimator "${estimator_check}" "${require_gpu[@]}" "${frames_opt[@]}" \
     --csv "${out_dir}/check_estimator.csv" "${files[@]}"
 elif (( ${#files[@]} )); then
-  log "cuda_estimator_check not built (no Eigen headers: scripts/prepare_device_carry.sh carries them): estimator check SKIPPED"
+  log "cuda_estimator_check not built (no Eigen headers: scripts/prepare_device_carry.sh copies them into .device_carry/eigen3): estimator check SKIPPED"
 fi
 # 2. ... and on synthetic frames (pure rotation and forward driving, 30 % outliers).
 run check_synthetic "${check}" "${require_gpu[@]}" --synthetic "${synthetic}" --csv "${out_dir}/check_synthetic.csv"
@@ -117,9 +117,10 @@ done
 
 log "results in ${out_dir}:"
 ls -l "${out_dir}"
-if [[ -n ${OUT:-} && -d ${OUT} && $(cd "${OUT}" && pwd) != $(cd "${out_dir}" && pwd) ]]; then
-  tar czf "${OUT}/gpu_bench.tar.gz" -C "${out_dir}" .
-  log "packed into ${OUT}/gpu_bench.tar.gz"
+pack=${GPU_BENCH_PACK:-}
+if [[ -n ${pack} && -d ${pack} && $(cd "${pack}" && pwd) != $(cd "${out_dir}" && pwd) ]]; then
+  tar czf "${pack}/gpu_bench.tar.gz" -C "${out_dir}" .
+  log "packed into ${pack}/gpu_bench.tar.gz"
 fi
 if [[ ${status} -ne 0 ]]; then
   log "SOME CHECKS FAILED"
@@ -128,5 +129,5 @@ elif grep -q "GPU PART SKIPPED" "${out_dir}"/check_synthetic.log; then
 else
   log "ALL CHECKS PASSED on ${gpu_name:-unknown GPU}"
 fi
-[[ -n ${OUT:-} && -d ${OUT} ]] && cp "${out_dir}/console.log" "${OUT}/console.log" 2>/dev/null
+[[ -n ${pack} && -d ${pack} ]] && cp "${out_dir}/console.log" "${pack}/console.log" 2>/dev/null
 exit "${status}"

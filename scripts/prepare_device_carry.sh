@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Fills .device_carry/ (git-ignored) with what the GPU machine needs and lacks, for
-# `run(command="scripts/gpu_bench.sh", carry=[".device_carry"])`:
+# Fills .device_carry/ (git-ignored) with what scripts/gpu_bench.sh needs on a machine with a GPU
+# but without the data, ROS or Eigen; copy it there with the working tree:
 #   bearings/<sequence>.txt  matched bearings (+ dt, true rotation) of the shared sequences present,
 #                            exported by `evaluate --export-bearings` (needs `make build` first);
-#   eigen3/Eigen/            Eigen's headers, for cuda_estimator_check (the GPU machine has no Eigen).
-# About 17 MB in all (small enough to copy to a GPU machine with the working tree).
+#   eigen3/Eigen/            Eigen's headers, for cuda_estimator_check.
+# About 32 MB in all (25 MB of bearings for the four shared sequences).
 #
 #   scripts/prepare_device_carry.sh            # 200 pairs per sequence at most
 #   FRAMES=50 scripts/prepare_device_carry.sh
@@ -20,7 +20,7 @@ fi
 mkdir -p "${carry}/bearings"
 rm -f "${carry}"/bearings/*.txt
 exported=0
-for name in kitti_turn kitti_straight euroc_v101_static; do
+for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake; do
   if [[ ! -d ${DATA_DIR}/${name} ]]; then
     echo "[carry] skipping ${name}: ${DATA_DIR}/${name} not present"
     continue
@@ -39,6 +39,6 @@ if [[ -f ${eigen}/Eigen/Core ]]; then
   cp -r "${eigen}/Eigen" "${carry}/eigen3/"
   echo "[carry] Eigen headers from ${eigen}"
 else
-  echo "[carry] no Eigen headers found (make deps installs libeigen3-dev): cuda_estimator_check will not be built there" >&2
+  echo "[carry] no Eigen headers found (make deps installs libeigen3-dev): cuda_estimator_check is built only where Eigen is installed" >&2
 fi
 echo "[carry] ${exported} bearing files; .device_carry is $(du -sh "${carry}" | cut -f1)"

@@ -34,6 +34,11 @@ add_rostest_gtest(test_reliability_ros test/ros/reliability.test test/ros/test_r
 target_link_libraries(test_reliability_ros visual_gyro_ros_test_support)
 add_dependencies(test_reliability_ros visual_gyro_node visual_gyro_nodelet)
 
+# Start-up parameters the settings gate refuses: replaced by their defaults and named.
+add_rostest_gtest(test_settings_startup_ros test/ros/settings_startup.test test/ros/test_settings_startup_ros.cpp)
+target_link_libraries(test_settings_startup_ros visual_gyro_ros_test_support)
+add_dependencies(test_settings_startup_ros visual_gyro_node visual_gyro_nodelet)
+
 # Soak: 1 minute of 30 Hz replay; memory, descriptors and answers checked (make soak runs it longer).
 add_rostest_gtest(test_soak test/ros/soak.test test/ros/soak.cpp test/test_support.cpp)
 target_link_libraries(test_soak visual_gyro_ros_tools ${catkin_LIBRARIES})

@@ -25,11 +25,8 @@ struct NamedKernel {
 
 std::vector<NamedKernel> availableKernels() {
   std::vector<NamedKernel> kernels;
-  const std::pair<const char*, bk::KernelSet> all[] = {{"portable", bk::KernelSet::kPortable},
-                                                       {"avx2", bk::KernelSet::kAvx2},
-                                                       {"avx512_vbmi", bk::KernelSet::kAvx512Vbmi}};
-  for (const auto& [name, set] : all) {
-    if (const bk::TestKernel kernel = bk::kernelFor(set)) kernels.push_back({name, kernel});
+  for (const cpu::CpuLevel level : cpu::kAllLevels) {
+    if (const bk::TestKernel kernel = bk::kernelFor(level)) kernels.push_back({cpu::levelName(level), kernel});
   }
   return kernels;
 }
@@ -98,9 +95,9 @@ TEST(BriefKernels, FlatPatchesSetNoBit) {
 }
 
 TEST(BriefKernels, ThePermuteKernelOrTheFasterOfTheOthersIsSelected) {
-  const bk::TestKernel portable = bk::kernelFor(bk::KernelSet::kPortable);
-  const bk::TestKernel gather = bk::kernelFor(bk::KernelSet::kAvx2);
-  const bk::TestKernel permute = bk::kernelFor(bk::KernelSet::kAvx512Vbmi);
+  const bk::TestKernel portable = bk::kernelFor(cpu::CpuLevel::kPortable);
+  const bk::TestKernel gather = bk::kernelFor(cpu::CpuLevel::kAvx2);
+  const bk::TestKernel permute = bk::kernelFor(cpu::CpuLevel::kAvx512Vbmi);
   ASSERT_NE(portable, nullptr);
   const bk::TestKernel selected = bk::selectKernel();
   if (permute != nullptr) {
@@ -111,6 +108,14 @@ TEST(BriefKernels, ThePermuteKernelOrTheFasterOfTheOthersIsSelected) {
   } else {
     EXPECT_EQ(selected, portable);
   }
+  // Forced levels: no kernel of a level above the one forced, the timing only between gathers and
+  // the portable kernel.
+  EXPECT_EQ(bk::selectKernel(cpu::CpuLevel::kPortable), portable);
+  EXPECT_EQ(bk::selectKernel(cpu::CpuLevel::kAvx), portable);
+  if (gather != nullptr) {
+    const bk::TestKernel at_avx512_bw = bk::selectKernel(cpu::CpuLevel::kAvx512Bw);
+    EXPECT_TRUE(at_avx512_bw == gather || at_avx512_bw == portable);
+  }
 }
 
 /// The portable kernel run twenty times over: the same bits in far more time.
@@ -118,14 +123,14 @@ BriefDescriptor slowPortable(const uint8_t* centre, std::ptrdiff_t step, const b
   static volatile uint64_t sink;
   BriefDescriptor descriptor{};
   for (int i = 0; i < 20; ++i) {
-    descriptor = bk::kernelFor(bk::KernelSet::kPortable)(centre, step, offsets);
+    descriptor = bk::kernelFor(cpu::CpuLevel::kPortable)(centre, step, offsets);
     sink = sink + descriptor[0];
   }
   return descriptor;
 }
 
 TEST(BriefKernels, TheTimingPicksTheFasterKernelInEitherOrder) {
-  const bk::TestKernel portable = bk::kernelFor(bk::KernelSet::kPortable);
+  const bk::TestKernel portable = bk::kernelFor(cpu::CpuLevel::kPortable);
   EXPECT_EQ(bk::fasterKernel(slowPortable, portable), portable);
   EXPECT_EQ(bk::fasterKernel(portable, slowPortable), portable);
 }

@@ -296,9 +296,9 @@ TEST(CpuVoter, SameSeedSameVotesAndCountsAddUp) {
 }
 
 TEST(MatchPasses, Avx2SameAsBaselineBitForBit) {
-  const vg::passes::PassTable* avx2 = vg::passes::avx2Passes();
-  if (avx2 == nullptr) GTEST_SKIP() << "no AVX2 on this CPU";
-  const vg::passes::PassTable& base = vg::passes::baselinePasses();
+  const vg::passes::PassTable* avx2 = vg::passes::passTableFor(vg::cpu::CpuLevel::kAvx2);
+  if (avx2 == nullptr) GTEST_SKIP() << "no AVX2 variant: this CPU lacks AVX2, a lower level is forced, or the build targets a wider CPU";
+  const vg::passes::PassTable& base = *vg::passes::passTableFor(vg::cpu::CpuLevel::kPortable);
   // A close scene under rotation and translation with wrong matches, a count that fills no
   // whole chunk, a rotation and translation near the truth.
   const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, -1 * kDeg, 0.5 * kDeg);

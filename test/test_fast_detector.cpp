@@ -33,14 +33,10 @@ struct NamedDetector {
 /// Every detector this build and CPU can run. The portable one always, SSE2 on every x86-64 CPU.
 std::vector<NamedDetector> availableDetectors() {
   std::vector<NamedDetector> detectors;
-  const std::pair<const char*, fd::InstructionSet> all[] = {
-      {"portable", fd::InstructionSet::kPortable},
-      {"sse2", fd::InstructionSet::kSse2},
-      {"avx2", fd::InstructionSet::kAvx2},
-      {"opencv", fd::InstructionSet::kOpenCv}};
-  for (const auto& [name, isa] : all) {
-    if (const fd::Detector detector = fd::detectorFor(isa)) detectors.push_back({name, detector});
+  for (const cpu::CpuLevel level : cpu::kAllLevels) {
+    if (const fd::Detector detector = fd::detectorFor(level)) detectors.push_back({cpu::levelName(level), detector});
   }
+  detectors.push_back({"opencv", fd::openCvDetector()});
   return detectors;
 }
 
@@ -100,19 +96,23 @@ cv::Mat uniformNoise(cv::Size size, uint64_t seed) {
   return noise;
 }
 
-TEST(FastDetector, InstructionSetsAvailable) {
-  EXPECT_NE(fd::detectorFor(fd::InstructionSet::kPortable), nullptr);
+TEST(FastDetector, DetectorsOfEachLevelAndTheSelectedOne) {
+  EXPECT_NE(fd::detectorFor(cpu::CpuLevel::kPortable), nullptr);
 #if defined(__x86_64__)
-  EXPECT_NE(fd::detectorFor(fd::InstructionSet::kSse2), nullptr);
+  if (cpu::runs(cpu::CpuLevel::kSse2)) EXPECT_NE(fd::detectorFor(cpu::CpuLevel::kSse2), nullptr);
 #endif
   // The widest vector detector the CPU runs, else cv::FAST (faster than the portable path).
   const fd::Detector selected = fd::selectDetector();
   const std::vector<NamedDetector> detectors = availableDetectors();
-  fd::Detector expected = fd::detectorFor(fd::InstructionSet::kOpenCv);
-  for (const fd::InstructionSet isa : {fd::InstructionSet::kSse2, fd::InstructionSet::kAvx2}) {
-    if (const fd::Detector d = fd::detectorFor(isa)) expected = d;
+  fd::Detector expected = fd::openCvDetector();
+  for (const cpu::CpuLevel level : {cpu::CpuLevel::kSse2, cpu::CpuLevel::kAvx2}) {
+    if (const fd::Detector d = fd::detectorFor(level)) expected = d;
   }
   EXPECT_EQ(selected, expected) << "the selected detector is not the widest vector one available";
+  // Forced levels: cv::FAST below SSE2, SSE2 up to AVX.
+  EXPECT_EQ(fd::selectDetector(cpu::CpuLevel::kPortable), fd::openCvDetector());
+  if (cpu::runs(cpu::CpuLevel::kSse2))
+    EXPECT_EQ(fd::selectDetector(cpu::CpuLevel::kAvx), fd::detectorFor(cpu::CpuLevel::kSse2));
   std::string names;
   for (const NamedDetector& d : detectors) names += " " + d.name;
   std::printf("FAST detectors compared with cv::FAST on this machine:%s\n", names.c_str());

@@ -613,6 +613,18 @@ TEST(SubpixelRefinement, OffLeavesIntegerPositionsAndBadInputThrows) {
   EXPECT_THROW(on.refineMatches(flat, colour, a, b, &matches), std::invalid_argument);
 }
 
+// The filter in use is that of the highest level the CPU runs that has one.
+TEST(FixedPointGaussian, TheFilterOfTheHighestLevelIsSelected) {
+  namespace fpg = fixed_point_gaussian;
+  const auto filters = fpg::availableFilters();
+  ASSERT_FALSE(filters.empty());
+  EXPECT_EQ(filters.front().first, "portable");
+  EXPECT_EQ(fpg::selectFilter(), filters.back().second);
+  EXPECT_EQ(fpg::selectFilter(cpu::CpuLevel::kAvx), fpg::filterFor(cpu::CpuLevel::kPortable));
+  if (cpu::runs(cpu::CpuLevel::kAvx512Vbmi))
+    EXPECT_EQ(fpg::selectFilter(cpu::CpuLevel::kAvx512Vbmi), fpg::filterFor(cpu::CpuLevel::kAvx512Bw));
+}
+
 // The package's fixed-point Gaussian (the default smoothing) must be cv::GaussianBlur bit for
 // bit: the descriptors, and so every figure, are the same as with OpenCV's filter.
 TEST(FixedPointGaussian, SameAsOpenCvBitForBit) {

@@ -18,10 +18,6 @@ namespace {
 namespace hm = hamming;
 constexpr int kNone = std::numeric_limits<int>::max();
 
-const std::pair<const char*, hm::InstructionSet> kAllSets[] = {{"portable", hm::InstructionSet::kPortable},
-                                                               {"popcnt", hm::InstructionSet::kPopcnt},
-                                                               {"avx2", hm::InstructionSet::kAvx2},
-                                                               {"avx512", hm::InstructionSet::kAvx512}};
 
 /// Descriptors that differ from a few common ones in a few bits, so equal distances (ties for
 /// best, second and column best) are frequent.
@@ -144,7 +140,7 @@ TEST(HammingKernels, PortableGuidedEqualsPlainSearch) {
       const GuidedCase c = makeCase(300, 400, 320.f, 240.f, 60.f, seed);
       SortedGrid g(c.keypoints, c.current, cell);
       Tables got(300, 400);
-      hm::guidedKernelFor(hm::InstructionSet::kPortable)(c.prev.data(), 300, c.predicted.data(), c.radii.data(),
+      hm::guidedKernelFor(cpu::CpuLevel::kPortable)(c.prev.data(), 300, c.predicted.data(), c.radii.data(),
                                                         g.grid, got.view());
       const Tables want = plainGuided(c.prev, c.predicted, c.radii, g);
       EXPECT_TRUE(got == want) << "cell " << cell << " seed " << seed;
@@ -172,18 +168,17 @@ TEST(HammingKernels, EveryGuidedKernelEqualsPortableBitForBit) {
                           {40, 0, 50.f, 50.f, 30.f, 16.f},          // none
                           {0, 30, 50.f, 50.f, 30.f, 16.f}};
   int compared = 0;
-  for (const auto& [name, isa] : kAllSets) {
-    const hm::GuidedKernel kernel = hm::guidedKernelFor(isa);
-    if (!kernel) {
-      std::printf("[ SKIPPED  ] guided kernel %s: this build or CPU does not run it\n", name);
-      continue;
-    }
+  for (const cpu::CpuLevel level : cpu::kAllLevels) {
+    const hm::GuidedKernel kernel = hm::guidedKernelFor(level);
+    const char* name = cpu::levelName(level);
+    if (!kernel) continue;  // none of its own, or not in this build or on this CPU
+    std::printf("guided kernel %s compared\n", name);
     for (const Shape& s : shapes) {
       for (uint64_t seed = 11; seed <= 13; ++seed) {
         const GuidedCase c = makeCase(s.n_prev, s.n_cur, s.width, s.height, s.max_radius, seed);
         SortedGrid g(c.keypoints, c.current, s.cell);
         Tables want(s.n_prev, s.n_cur), got(s.n_prev, s.n_cur);
-        hm::guidedKernelFor(hm::InstructionSet::kPortable)(c.prev.data(), s.n_prev, c.predicted.data(),
+        hm::guidedKernelFor(cpu::CpuLevel::kPortable)(c.prev.data(), s.n_prev, c.predicted.data(),
                                                           c.radii.data(), g.grid, want.view());
         // Stale indices in the working list must not matter.
         std::fill(g.inside.begin(), g.inside.end(), s.n_cur > 0 ? s.n_cur - 1 : 0);
@@ -194,13 +189,14 @@ TEST(HammingKernels, EveryGuidedKernelEqualsPortableBitForBit) {
     ++compared;
   }
   EXPECT_GE(compared, 1) << "the portable kernel always runs";
+  if (cpu::runs(cpu::CpuLevel::kAvx2)) EXPECT_GE(compared, 3) << "portable, popcnt and avx2 at least";
 }
 
 TEST(HammingKernels, EveryBruteForceKernelEqualsPortableBitForBit) {
   SplitMix64 rng(5);
   const std::vector<BriefDescriptor> prev = collidingDescriptors(700, &rng), cur = collidingDescriptors(650, &rng);
   Tables want(700, 650);
-  hm::bruteForceKernelFor(hm::InstructionSet::kPortable)(prev.data(), 700, cur.data(), 650, want.view());
+  hm::bruteForceKernelFor(cpu::CpuLevel::kPortable)(prev.data(), 700, cur.data(), 650, want.view());
   // The portable kernel against the definition: the first of equal distances wins.
   for (int i = 0; i < 700; i += 37) {
     int best = kNone, best_j = hm::kNoMatch;
@@ -213,37 +209,38 @@ TEST(HammingKernels, EveryBruteForceKernelEqualsPortableBitForBit) {
   }
   // Brute force has kernels of its own for popcnt and AVX-512 (AVX2 adds nothing to it). The
   // column counts cover no whole step of eight, whole steps only and whole steps plus a rest.
-  for (const auto& [name, isa] : kAllSets) {
-    if (isa == hm::InstructionSet::kAvx2) {
-      EXPECT_EQ(hm::bruteForceKernelFor(isa), nullptr) << "no brute-force kernel of its own for AVX2";
-      continue;
-    }
-    const hm::BruteForceKernel kernel = hm::bruteForceKernelFor(isa);
-    if (!kernel) {
-      std::printf("[ SKIPPED  ] brute-force kernel %s: this build or CPU does not run it\n", name);
-      continue;
-    }
+  EXPECT_EQ(hm::bruteForceKernelFor(cpu::CpuLevel::kAvx2), nullptr) << "no brute-force kernel of its own for AVX2";
+  int compared = 0;
+  for (const cpu::CpuLevel level : cpu::kAllLevels) {
+    const hm::BruteForceKernel kernel = hm::bruteForceKernelFor(level);
+    const char* name = cpu::levelName(level);
+    if (!kernel) continue;  // none of its own, or not in this build or on this CPU
+    std::printf("brute-force kernel %s compared\n", name);
+    ++compared;
     Tables got(700, 650);
     kernel(prev.data(), 700, cur.data(), 650, got.view());
     EXPECT_TRUE(got == want) << name;
     for (const int n_cur : {1, 7, 16, 23}) {
       Tables small_want(700, n_cur), small_got(700, n_cur);
-      hm::bruteForceKernelFor(hm::InstructionSet::kPortable)(prev.data(), 700, cur.data(), n_cur,
-                                                             small_want.view());
+      hm::bruteForceKernelFor(cpu::CpuLevel::kPortable)(prev.data(), 700, cur.data(), n_cur, small_want.view());
       kernel(prev.data(), 700, cur.data(), n_cur, small_got.view());
       EXPECT_TRUE(small_got == small_want) << name << ": 700 x " << n_cur;
     }
   }
+  EXPECT_GE(compared, 1) << "the portable kernel always runs";
 }
 
-TEST(HammingKernels, TheSelectedKernelsAreAmongTheAvailable) {
-  bool guided = false, brute = false;
-  for (const auto& [name, isa] : kAllSets) {
-    guided = guided || hm::guidedKernelFor(isa) == hm::selectGuidedKernel();
-    brute = brute || hm::bruteForceKernelFor(isa) == hm::selectBruteForceKernel();
+TEST(HammingKernels, TheSelectedKernelsAreThoseOfTheHighestLevel) {
+  EXPECT_EQ(hm::selectGuidedKernel(), hm::selectGuidedKernel(cpu::activeLevel()));
+  EXPECT_EQ(hm::selectBruteForceKernel(), hm::selectBruteForceKernel(cpu::activeLevel()));
+  // A forced level picks the kernel of the highest level at or below it that has one.
+  EXPECT_EQ(hm::selectGuidedKernel(cpu::CpuLevel::kPortable), hm::guidedKernelFor(cpu::CpuLevel::kPortable));
+  if (cpu::runs(cpu::CpuLevel::kAvx512Bw)) {
+    EXPECT_EQ(hm::selectGuidedKernel(cpu::CpuLevel::kAvx512Bw), hm::guidedKernelFor(cpu::CpuLevel::kAvx2));
+    EXPECT_EQ(hm::selectBruteForceKernel(cpu::CpuLevel::kAvx512Bw), hm::bruteForceKernelFor(cpu::CpuLevel::kPopcnt));
   }
-  EXPECT_TRUE(guided);
-  EXPECT_TRUE(brute);
+  if (cpu::runs(cpu::CpuLevel::kAvx512Vbmi))
+    EXPECT_EQ(hm::selectBruteForceKernel(), hm::bruteForceKernelFor(cpu::CpuLevel::kAvx512Vbmi));
 }
 
 }  // namespace

@@ -71,40 +71,38 @@ int compareWithPortable(pa::TemplateKernel build_template, pa::CorrelationKernel
 }
 
 TEST(PatchAlignmentKernels, VectorKernelsGiveThePortableIntegersExactly) {
-  int sets_compared = 0;
-  for (const pa::KernelSet set : {pa::KernelSet::kSse2, pa::KernelSet::kAvx2}) {
-    const pa::TemplateKernel build_template = pa::templateKernelFor(set);
-    const pa::CorrelationKernel correlate = pa::correlationKernelFor(set);
-    ASSERT_EQ(build_template == nullptr, correlate == nullptr) << "a set has both kernels or neither";
-    if (build_template == nullptr) {
-      std::printf("kernel set %d: not in this build or not on this CPU, not compared\n", static_cast<int>(set));
-      continue;
-    }
+  int levels_compared = 0;
+  for (const cpu::CpuLevel level : cpu::kAllLevels) {
+    if (level == cpu::CpuLevel::kPortable) continue;
+    const pa::TemplateKernel build_template = pa::templateKernelFor(level);
+    const pa::CorrelationKernel correlate = pa::correlationKernelFor(level);
+    ASSERT_EQ(build_template == nullptr, correlate == nullptr) << "a level has both kernels or neither";
+    if (build_template == nullptr) continue;  // none of its own, or not in this build or on this CPU
     const int compared = compareWithPortable(build_template, correlate);
-    std::printf("kernel set %d: %d template/correlation pairs compared\n", static_cast<int>(set), compared);
+    std::printf("level %s: %d template/correlation pairs compared\n", cpu::levelName(level), compared);
     EXPECT_GT(compared, 500);
-    ++sets_compared;
+    ++levels_compared;
   }
   // x86-64 builds always have SSE2; elsewhere only the portable kernels exist (nothing to compare).
 #if defined(__SSE2__)
-  EXPECT_GE(sets_compared, 1);
+  if (cpu::runs(cpu::CpuLevel::kSse2)) EXPECT_GE(levels_compared, 1);
 #endif
-  // The kernels in use are one of the sets.
-  EXPECT_NE(pa::templateKernel(), nullptr);
-  EXPECT_NE(pa::correlationKernel(), nullptr);
+  // The kernels in use are those of the highest level that has them.
+  EXPECT_EQ(pa::templateKernel(), pa::selectTemplateKernel(cpu::activeLevel()));
+  EXPECT_EQ(pa::correlationKernel(), pa::selectCorrelationKernel(cpu::activeLevel()));
+  EXPECT_EQ(pa::selectTemplateKernel(cpu::CpuLevel::kPortable), pa::buildTemplatePortable);
+  if (cpu::runs(cpu::CpuLevel::kAvx2))
+    EXPECT_EQ(pa::selectCorrelationKernel(cpu::CpuLevel::kAvx512Vbmi), pa::correlationKernelFor(cpu::CpuLevel::kAvx2));
 }
 
 // The similarity check's sums: every kernel gives the portable integers at every weight, including
 // 0 and kBilinearOne and the extreme intensities.
 TEST(PatchAlignmentKernels, MomentsKernelsGiveThePortableIntegersExactly) {
   int compared = 0;
-  for (const pa::KernelSet set : {pa::KernelSet::kSse2, pa::KernelSet::kAvx2}) {
-    const pa::MomentsKernel moments = pa::momentsKernelFor(set);
-    if (moments == nullptr) {
-      std::printf("kernel set %d: no moments kernel in this build or on this CPU, not compared\n",
-                  static_cast<int>(set));
-      continue;
-    }
+  for (const cpu::CpuLevel level : cpu::kAllLevels) {
+    const pa::MomentsKernel moments = pa::momentsKernelFor(level);
+    if (level == cpu::CpuLevel::kPortable || moments == nullptr) continue;
+    std::printf("level %s: moments kernel compared\n", cpu::levelName(level));
     for (const cv::Mat& image : kernelTestImages()) {
       for (int y = 0; y + pa::kSide + 1 < image.rows; y += 7) {
         for (int x = 0; x + pa::kStride + 1 < image.cols; x += 9) {
@@ -127,7 +125,9 @@ TEST(PatchAlignmentKernels, MomentsKernelsGiveThePortableIntegersExactly) {
     }
   }
   std::printf("%d moment sums compared\n", compared);
-  EXPECT_NE(pa::momentsKernel(), nullptr);
+  if (cpu::runs(cpu::CpuLevel::kAvx2)) EXPECT_GT(compared, 0);
+  EXPECT_EQ(pa::momentsKernel(), pa::selectMomentsKernel(cpu::activeLevel()));
+  EXPECT_EQ(pa::selectMomentsKernel(cpu::CpuLevel::kSse2), pa::momentsPortable) << "SSE2 has no moments kernel";
 }
 
 // The correlation from the integer sums against one computed in doubles with exact bilinear

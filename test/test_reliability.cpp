@@ -1,6 +1,6 @@
 // Plausibility before publishing and bad input, for the pipeline and for `evaluate` on malformed
-// folders (made here from a small rendered sequence). Each case is a row of the README's bad-input
-// table; the ROS rows are in test/ros/test_reliability_ros.cpp.
+// folders (made here from a small rendered sequence). Each case is a row of the bad-input
+// table in doc/reliability.md; the ROS rows are in test/ros/test_reliability_ros.cpp.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>

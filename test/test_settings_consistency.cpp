@@ -1,24 +1,34 @@
-// One source of truth for the settings: the settings table (visualGyroSettingFields: name, type,
-// default, range, choices) against cfg/VisualGyro.cfg, config/visual_gyro.yaml, the README and the
-// validation. Fails when any copy drifts, or when validation accepts other values than the ranges.
+// One source of truth for the settings: the pipeline's table (visualGyroSettingFields) and the
+// node's (nodeSettingFields) against the files made from them (cfg/VisualGyro.cfg,
+// config/visual_gyro.yaml, the settings blocks of README.md and doc/ros.md) and against the gate.
+// Fails when a committed file differs from what `make settings-files` writes, when the generated
+// files do not say what the tables say, or when the gate accepts other values than the ranges.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "node_settings.h"
+#include "settings_text.h"
+#include "visual_gyro/camera_model.h"
 #include "visual_gyro/visual_gyro.h"
 
 namespace fs = std::filesystem;
 namespace vg = visual_gyro;
+namespace st = visual_gyro::settings_text;
 
 namespace {
 
-fs::path repo() { return fs::path(__FILE__).parent_path().parent_path(); }
+// The checkout (in the catkin workspace: its shadow folder of links to the checkout's entries).
+fs::path repo() { return fs::path(VISUAL_GYRO_SOURCE_DIR); }
 
 std::string readAll(const fs::path& path) {
   std::ifstream in(path);
@@ -31,7 +41,6 @@ std::string readAll(const fs::path& path) {
 struct CfgEntry {
   std::string type;  ///< int_t, double_t, bool_t, str_t
   std::string default_text;
-  std::string min_text, max_text;  ///< empty for bool and str
   std::vector<std::string> choices;  ///< str_t with an edit_method enum
 };
 
@@ -48,20 +57,19 @@ std::map<std::string, std::vector<std::string>> cfgEnums(const std::string& text
   return out;
 }
 
+/// name -> gen.add(...) of cfg/VisualGyro.cfg, read as dynamic_reconfigure reads it.
 std::map<std::string, CfgEntry> cfgEntries() {
   std::map<std::string, CfgEntry> out;
   const std::string text = readAll(repo() / "cfg" / "VisualGyro.cfg");
   const auto enums = cfgEnums(text);
-  // gen.add("name", type, level, "doc", default[, min, max][, edit_method=enum])
+  // gen.add("name", type, level, "doc", default[, edit_method=enum]): no min, no max.
   const std::regex add(
-      R"re(gen\.add\("(\w+)",\s*(\w+),\s*\d+,\s*"[^"]*",\s*("[^"]*"|[^,\s)]+)(?:,\s*([^,\s)=]+),\s*([^,\s)=]+))?(?:,\s*edit_method=(\w+))?\))re");
+      R"re(gen\.add\("(\w+)",\s*(\w+),\s*\d+,\s*"(?:[^"\\]|\\.)*",\s*("(?:[^"\\]|\\.)*"|[^,\s)]+)(?:,\s*edit_method=(\w+))?\))re");
   for (auto it = std::sregex_iterator(text.begin(), text.end(), add); it != std::sregex_iterator(); ++it) {
     CfgEntry e;
     e.type = (*it)[2];
     e.default_text = (*it)[3];
-    e.min_text = (*it)[4];
-    e.max_text = (*it)[5];
-    const std::string edit = (*it)[6];
+    const std::string edit = (*it)[4];
     if (!edit.empty() && enums.count(edit)) e.choices = enums.at(edit);
     out[(*it)[1]] = e;
   }
@@ -73,7 +81,7 @@ std::map<std::string, std::string> yamlValues() {
   std::map<std::string, std::string> out;
   std::ifstream in(repo() / "config" / "visual_gyro.yaml");
   std::string line;
-  const std::regex entry(R"re(^(\w+):\s*("[^"]*"|[^#\s]+))re");
+  const std::regex entry(R"re(^(\w+):\s*("[^"]*"|\[[^\]]*\]|[^#\s]+))re");
   while (std::getline(in, line)) {
     std::smatch m;
     if (std::regex_search(line, m, entry)) out[m[1]] = m[2];
@@ -103,98 +111,191 @@ const char* cfgType(vg::SettingType type) {
     case vg::SettingType::kInt: return "int_t";
     case vg::SettingType::kDouble: return "double_t";
     case vg::SettingType::kString: return "str_t";
+    case vg::SettingType::kDoubleList: return "(none: not live)";
   }
   return "?";
 }
 
-// Settings read once at start (not live): in the yaml, not in the .cfg.
-bool startOnly(const std::string& name) { return name == "backend"; }
+/// The first line where `a` and `b` differ, for the failure message.
+std::string firstDifference(const std::string& a, const std::string& b) {
+  std::istringstream in_a(a), in_b(b);
+  std::string line_a, line_b;
+  for (int line = 1;; ++line) {
+    const bool more_a = static_cast<bool>(std::getline(in_a, line_a));
+    const bool more_b = static_cast<bool>(std::getline(in_b, line_b));
+    if (!more_a && !more_b) return "(they differ in line endings only)";
+    if (!more_a || !more_b || line_a != line_b) {
+      return "line " + std::to_string(line) + ":\n  committed: " + (more_a ? line_a : "(end)") +
+             "\n  generated: " + (more_b ? line_b : "(end)");
+    }
+  }
+}
 
 }  // namespace
 
-TEST(SettingsConsistency, TableCfgYamlAndReadmeAgree) {
+TEST(SettingsConsistency, CommittedFilesAreWhatTheTablesGenerate) {
+  std::map<std::string, std::string> committed, generated;
+  for (const st::GeneratedPart& part : st::generatedParts()) {
+    if (!committed.count(part.path)) {
+      committed[part.path] = readAll(repo() / part.path);
+      generated[part.path] = committed[part.path];
+    }
+    std::string updated, why;
+    ASSERT_TRUE(st::applyPart(generated[part.path], part, &updated, &why)) << why;
+    generated[part.path] = updated;
+  }
+  for (const auto& file : committed) {
+    EXPECT_TRUE(file.second == generated[file.first])
+        << file.first << " differs from the settings tables; run `" << st::kRegenerateCommand
+        << "` to regenerate it. First difference at " << firstDifference(file.second, generated[file.first]);
+  }
+}
+
+// The generated files say what the tables say, read as dynamic_reconfigure and rosparam read them.
+TEST(SettingsConsistency, CfgAndYamlHoldEverySettingWithItsDefault) {
   const auto cfg = cfgEntries();
   const auto yaml = yamlValues();
-  const std::string readme = readAll(repo() / "README.md");
-  const vg::VisualGyroSettings defaults;
-  ASSERT_GT(cfg.size(), 30u) << "the .cfg was not parsed";
-  ASSERT_GT(vg::visualGyroSettingFields().size(), 30u);
-  for (const auto& field : vg::visualGyroSettingFields()) {
-    SCOPED_TRACE(field.name);
-    const std::string value = field.text(defaults);
-    EXPECT_NE(readme.find("`" + field.name + "`"), std::string::npos) << "not in the README";
-    const auto y = yaml.find(field.name);
+  const auto all = vg::everySetting();
+  ASSERT_GT(all.size(), 60u);
+  size_t live = 0;
+  for (const vg::AnySetting& s : all) {
+    SCOPED_TRACE(s.spec->name);
+    const auto y = yaml.find(s.spec->name);
     ASSERT_NE(y, yaml.end()) << "not in config/visual_gyro.yaml";
-    EXPECT_EQ(normalised(y->second), normalised(value)) << "yaml " << y->second << ", C++ default " << value;
-    const auto c = cfg.find(field.name);
-    if (startOnly(field.name)) {
-      EXPECT_EQ(c, cfg.end()) << "read once at start: not live-tunable";
+    if (s.spec->type == vg::SettingType::kDouble) {
+      // PyYAML reads a float only with a point: "1e-08" would be text.
+      EXPECT_TRUE(std::regex_match(y->second, std::regex(R"re([-+]?[0-9]+\.[0-9]*([eE][-+][0-9]+)?)re")))
+          << "yaml " << y->second << " is no YAML 1.1 float";
+    }
+    if (s.spec->type == vg::SettingType::kDoubleList) {
+      EXPECT_EQ(y->second, "[]");
+      EXPECT_FALSE(s.spec->live) << "dynamic_reconfigure has no list type";
+    } else {
+      EXPECT_EQ(normalised(y->second), normalised(s.default_text)) << "yaml " << y->second;
+    }
+    const auto c = cfg.find(s.spec->name);
+    if (!s.spec->live) {
+      EXPECT_EQ(c, cfg.end()) << "read once at start: not in the .cfg";
       continue;
     }
-    ASSERT_NE(c, cfg.end()) << "not in cfg/VisualGyro.cfg";
-    EXPECT_EQ(c->second.type, cfgType(field.type));
-    EXPECT_EQ(normalised(c->second.default_text), normalised(value))
-        << ".cfg default " << c->second.default_text << ", C++ default " << value;
-    if (field.type == vg::SettingType::kInt || field.type == vg::SettingType::kDouble) {
-      EXPECT_EQ(normalised(c->second.min_text), normalised(vg::SettingField<vg::VisualGyroSettings>::formatNumber(field.min)))
-          << ".cfg min " << c->second.min_text << ", table min " << field.min;
-      EXPECT_EQ(normalised(c->second.max_text), normalised(vg::SettingField<vg::VisualGyroSettings>::formatNumber(field.max)))
-          << ".cfg max " << c->second.max_text << ", table max " << field.max;
-    }
-    if (!field.choices.empty()) EXPECT_EQ(c->second.choices, field.choices) << "enum constants differ";
+    ++live;
+    ASSERT_NE(c, cfg.end()) << "live but not in cfg/VisualGyro.cfg";
+    EXPECT_EQ(c->second.type, cfgType(s.spec->type));
+    EXPECT_EQ(normalised(c->second.default_text), normalised(s.default_text));
+    EXPECT_EQ(c->second.choices, s.spec->choices) << "enum constants differ";
   }
+  EXPECT_EQ(cfg.size(), live) << "the .cfg holds a parameter that is no live setting";
 }
 
-TEST(SettingsConsistency, ReadmeTableIsTheTablesOutput) {
-  const std::string readme = readAll(repo() / "README.md");
-  const std::string table = vg::settingsMarkdownTable();
-  EXPECT_NE(readme.find(table), std::string::npos)
-      << "the README's settings table differs from `evaluate --settings-table`:\n" << table;
+TEST(SettingsConsistency, EverySettingIsNamedInDocRos) {
+  const std::string doc = readAll(repo() / "doc" / "ros.md");
+  ASSERT_FALSE(doc.empty()) << "cannot read doc/ros.md";
+  for (const vg::AnySetting& s : vg::everySetting())
+    EXPECT_NE(doc.find("`" + s.spec->name + "`"), std::string::npos) << s.spec->name << " is not in doc/ros.md";
 }
 
-TEST(SettingsConsistency, NodeSettingsInTheCfgAreInTheYamlAndReadme) {
-  const auto yaml = yamlValues();
-  const std::string readme = readAll(repo() / "README.md");
-  for (const auto& entry : cfgEntries()) {
-    if (vg::findSetting(entry.first) != nullptr) continue;  // checked against the table above
-    SCOPED_TRACE(entry.first);
-    const auto y = yaml.find(entry.first);
-    ASSERT_NE(y, yaml.end()) << "in the .cfg but not in config/visual_gyro.yaml";
-    EXPECT_EQ(normalised(entry.second.default_text), normalised(y->second));
-    EXPECT_NE(readme.find("`" + entry.first + "`"), std::string::npos) << "not in the README";
+TEST(SettingsConsistency, TiersNamesAndDefaults) {
+  std::set<std::string> names, user, paper;
+  for (const vg::AnySetting& s : vg::everySetting()) {
+    EXPECT_TRUE(names.insert(s.spec->name).second) << s.spec->name << " is in both tables";
+    if (s.spec->tier == vg::SettingTier::kUser) user.insert(s.spec->name);
+    if (s.spec->tier == vg::SettingTier::kPaperOnly) paper.insert(s.spec->name);
+    EXPECT_FALSE(s.spec->doc.empty()) << s.spec->name;
+    EXPECT_EQ(s.spec->doc.find('|'), std::string::npos) << s.spec->name << ": a '|' breaks the Markdown tables";
   }
-  ASSERT_TRUE(yaml.count("mono16_bit_depth"));
-  EXPECT_EQ(yaml.at("mono16_bit_depth"), "0");
+  EXPECT_EQ(paper, (std::set<std::string>{"centroid_subtraction", "yaw_bin_deg", "yaw_window_deg"}));
+  EXPECT_GE(user.size(), 8u);
+  EXPECT_LE(user.size(), 14u) << "the user tier is the few settings a user sets";
+  EXPECT_EQ(names.count("run_estimator"), 0u) << "an option of the evaluation, not a setting";
+  // The defaults pass the gate.
+  EXPECT_EQ(vg::validateVisualGyroSettings(vg::VisualGyroSettings()), "");
+  EXPECT_EQ(vg::validateNodeSettings(vg::NodeSettings()), "");
+  // Every distortion model the node accepts is one the camera model knows.
+  for (const std::string& model : vg::findNodeSetting("distortion_model")->choices)
+    EXPECT_TRUE(vg::parseDistortionModel(model, nullptr)) << model;
 }
 
-// The cfg accepts exactly what validation accepts: both ends of every range are valid (with every
-// other setting at its default), and the first value beyond each end is refused, naming the setting.
+// The gate accepts exactly the ranges, for both tables: both ends of every range are valid (an
+// exclusive end is not), the first value beyond each end is refused naming the setting, and so
+// are NaN and infinities; through the table's own apply function and through checkSettingValue.
 TEST(SettingsConsistency, ValidationAcceptsExactlyTheRanges) {
-  for (const auto& field : vg::visualGyroSettingFields()) {
-    if (field.type != vg::SettingType::kInt && field.type != vg::SettingType::kDouble) continue;
-    SCOPED_TRACE(field.name);
-    const double step = field.type == vg::SettingType::kInt ? 1.0 : std::max(1e-9, 1e-6 * std::abs(field.max - field.min));
+  for (const vg::AnySetting& s : vg::everySetting()) {
+    const vg::SettingSpec& f = *s.spec;
+    if (f.type == vg::SettingType::kBool || f.type == vg::SettingType::kString) continue;
+    SCOPED_TRACE(f.name);
+    const bool integer = f.type == vg::SettingType::kInt;
+    const double step = integer ? 1.0 : std::max(1e-9, 1e-6 * std::abs(f.max - f.min));
     auto text = [&](double v) {
-      return field.type == vg::SettingType::kInt ? std::to_string(static_cast<long long>(v))
-                                                 : vg::SettingField<vg::VisualGyroSettings>::formatNumber(v);
+      const std::string number = integer ? std::to_string(static_cast<long long>(v)) : vg::SettingSpec::formatNumber(v);
+      return f.type == vg::SettingType::kDoubleList ? "[" + number + "]" : number;
     };
-    for (const double inside : {field.min, field.max}) {
-      vg::VisualGyroSettings s;
-      ASSERT_EQ(vg::applySetting(&s, field.name, text(inside)), "") << text(inside);
-      EXPECT_EQ(vg::validateVisualGyroSettings(s), "") << field.name << " = " << text(inside);
+    auto check = [&](double v) {
+      const std::string why = vg::checkSettingValue(f.name, text(v));
+      // The same answer through the table's own apply function, and a refused value changes nothing.
+      if (s.node) {
+        vg::NodeSettings settings;
+        EXPECT_EQ(vg::applyNodeSetting(&settings, f.name, text(v)), why);
+        EXPECT_EQ(vg::validateNodeSettings(settings), "") << "a refused value changed the settings";
+      } else {
+        vg::VisualGyroSettings settings;
+        EXPECT_EQ(vg::applySetting(&settings, f.name, text(v)), why);
+        EXPECT_EQ(vg::validateVisualGyroSettings(settings), "") << "a refused value changed the settings";
+      }
+      return why;
+    };
+    EXPECT_EQ(check(f.max), "") << text(f.max);
+    if (f.min_exclusive) {
+      EXPECT_EQ(check(f.min + step), "") << text(f.min + step);
+      EXPECT_NE(check(f.min).find(f.name), std::string::npos) << text(f.min) << " accepted at an exclusive end";
+    } else {
+      EXPECT_EQ(check(f.min), "") << text(f.min);
     }
-    for (const double outside : {field.min - step, field.max + step}) {
-      if (field.name == "seed" && outside < 0) continue;  // unsigned: not representable
-      vg::VisualGyroSettings s;
-      const std::string why = vg::applySetting(&s, field.name, text(outside));
-      EXPECT_NE(why.find(field.name), std::string::npos) << text(outside) << " accepted: '" << why << "'";
-      EXPECT_EQ(vg::validateVisualGyroSettings(s), "") << "a refused value changed the settings";
+    if (f.has_special) EXPECT_EQ(check(f.special), "") << "special value " << text(f.special);
+    for (const double outside : {f.min - step, f.max + step}) {
+      if (f.name == "seed" && outside < 0) continue;  // unsigned: not representable
+      if (f.has_special && outside == f.special) continue;
+      EXPECT_NE(check(outside).find(f.name), std::string::npos) << text(outside) << " accepted";
+    }
+    for (const char* bad : {"nan", "inf", "-inf"}) {
+      const std::string value = f.type == vg::SettingType::kDoubleList ? std::string("[") + bad + "]" : bad;
+      EXPECT_NE(vg::checkSettingValue(f.name, value).find(f.name), std::string::npos) << value << " accepted";
     }
   }
-  // Text that is no value of its type, and unknown names, are refused too.
-  vg::VisualGyroSettings s;
-  EXPECT_NE(vg::applySetting(&s, "hypotheses", "many"), "");
-  EXPECT_NE(vg::applySetting(&s, "cross_check", "perhaps"), "");
-  EXPECT_NE(vg::applySetting(&s, "matching", "sideways").find("guided, global"), std::string::npos);
-  EXPECT_NE(vg::applySetting(&s, "no_such_setting", "1").find("unknown setting"), std::string::npos);
+  // Text that is no value of its type, and unknown names, are refused too, naming the setting.
+  EXPECT_NE(vg::checkSettingValue("hypotheses", "many").find("hypotheses"), std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("cross_check", "perhaps").find("cross_check"), std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("matching", "sideways").find("guided, global"), std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("queue_size", "1.5").find("queue_size"), std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("D", "[1, x]").find("D"), std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("distortion_model", "fisheye-ish").find("distortion_model"), std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("no_such_setting", "1").find("unknown setting"), std::string::npos);
+}
+
+// The values that were stored silently or clamped before the gate: NaN invalid_variance (a NaN
+// Imu covariance), NaN max_gap (gap resets stopped), invalid_variance 0 or -1 (clamped to 1e-9).
+TEST(SettingsConsistency, TheGateRefusesWhatWasStoredOrClampedSilently) {
+  for (const char* value : {"nan", "0", "-1", "inf"})
+    EXPECT_NE(vg::checkSettingValue("invalid_variance", value).find("invalid_variance must be in (0, 1000000]"),
+              std::string::npos)
+        << value;
+  EXPECT_EQ(vg::checkSettingValue("invalid_variance", "1e-9"), "");
+  for (const char* name : {"max_gap", "min_dt", "max_rate_dps"})
+    EXPECT_NE(vg::checkSettingValue(name, "nan").find(name), std::string::npos) << name;
+  EXPECT_NE(vg::checkSettingValue("mono16_bit_depth", "5")
+                .find("must be 0 (each frame scaled by its own largest value) or in [8, 16], got 5"),
+            std::string::npos);
+  EXPECT_NE(vg::checkSettingValue("queue_size", "0").find("queue_size must be in [1, 1000]"), std::string::npos);
+}
+
+TEST(SettingsConsistency, MarkerBlocksAreReplacedInPlace) {
+  const st::GeneratedPart part{"x.md", "<!-- a:begin -->", "<!-- a:end -->", "new\n"};
+  std::string out, why;
+  ASSERT_TRUE(st::applyPart("head\n<!-- a:begin -->\nold 1\nold 2\n<!-- a:end -->\ntail\n", part, &out, &why));
+  EXPECT_EQ(out, "head\n<!-- a:begin -->\nnew\n<!-- a:end -->\ntail\n");
+  ASSERT_TRUE(st::applyPart("<!-- a:begin -->\n<!-- a:end -->\n", part, &out, &why));
+  EXPECT_EQ(out, "<!-- a:begin -->\nnew\n<!-- a:end -->\n");
+  EXPECT_FALSE(st::applyPart("no markers\n", part, &out, &why));
+  EXPECT_NE(why.find("x.md"), std::string::npos);
+  EXPECT_FALSE(st::applyPart("<!-- a:end -->\n<!-- a:begin -->\n", part, &out, &why));
+  EXPECT_FALSE(st::applyPart("<!-- a:begin --> <!-- a:end -->\n", part, &out, &why));
 }

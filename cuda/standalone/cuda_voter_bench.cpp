@@ -3,17 +3,15 @@
 // grids; the paper's timing figures with today's hardware. Whole-call time by the host's steady
 // clock (upload to result on the host), GPU kernel time by CUDA events; medians over --runs runs
 // after --warmup runs. Without a working CUDA device the CUDA rows are skipped (said loudly).
+// Exit status: 0 every voter ran, 1 one threw or an input was bad, 2 a bad command line.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
-#include <iostream>
 #include <limits>
 #include <string>
 #include <vector>
 
-#include "bearing_file.h"
-#include "command_line.h"
 #include "standalone/check_common.h"
 
 using namespace visual_gyro;
@@ -21,20 +19,28 @@ using namespace visual_gyro::bearings;
 
 namespace {
 
-void usage() {
-  std::cout <<
-      "usage: cuda_voter_bench [options]\n"
-      "  --file PATH        bearing file; its frame with the most matches (or --frame K) is\n"
-      "                     resampled to each match count (default: synthetic bearings)\n"
-      "  --frame K          use the K-th frame of the file (0-based)\n"
-      "  --csv PATH         write the results as CSV (default: none)\n"
-      "  --runs N           timed runs per point, median reported (default 20)\n"
-      "  --warmup N         untimed runs first (default 3)\n"
-      "  --grids LIST       yaw, rotation or yaw,rotation (default)\n"
-      "  --backends LIST    cpu, cuda or cpu,cuda (default)\n"
-      "  --device D         CUDA device (default 0)\n"
-      "  --quick            fewer points and runs (a smoke test)\n";
-}
+const char* const kTool = "cuda_voter_bench";
+
+const char* const kUsage =
+    "usage: cuda_voter_bench [options]\n"
+    "  --file PATH        bearing file; its frame with the most matches (or --frame K) is\n"
+    "                     resampled to each match count (default: synthetic bearings)\n"
+    "  --frame K          use the K-th frame of the file (0-based)\n"
+    "  --csv PATH         write the results as CSV (default: none)\n"
+    "  --runs N           timed runs per point, median reported (default 20)\n"
+    "  --warmup N         untimed runs first (default 3)\n"
+    "  --grids LIST       yaw, rotation or yaw,rotation (default)\n"
+    "  --backends LIST    cpu, cuda or cpu,cuda (default)\n"
+    "  --device D         CUDA device (default 0)\n"
+    "  --quick            fewer points and runs (a smoke test)\n";
+
+struct BenchOptions {
+  ToolOptions tool;
+  std::string file;
+  long long frame_index = -1;
+  int runs = 20, warmup = 3;
+  bool quick = false, want_yaw = true, want_rotation = true, want_cpu = true, want_cuda = true;
+};
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -54,12 +60,6 @@ std::string cpuModel() {
       if (colon != std::string::npos) return line.substr(line.find_first_not_of(' ', colon + 1));
     }
   return "cpu";
-}
-
-std::string csvField(std::string text) {
-  for (char& c : text)
-    if (c == ',' || c == '"') c = ' ';
-  return text;
 }
 
 struct Timing {
@@ -91,179 +91,171 @@ Timing timeVoter(HypothesisVoter& voter, VoteRequest q, int warmup, int runs) {
   return t;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::string file, csv_path;
-  long long frame_index = -1;
-  int runs = 20, warmup = 3, device = 0;
-  bool quick = false, want_yaw = true, want_rotation = true, want_cpu = true, want_cuda = true;
-  try {
-    for (cli::Arguments args(argc, argv); args.next();) {
-      const std::string arg = args.current();
-      if (arg == "-h" || arg == "--help") {
-        usage();
-        return 0;
-      } else if (arg == "--file") {
-        file = args.value();
-      } else if (arg == "--frame") {
-        frame_index = static_cast<long long>(args.intValue(0, std::numeric_limits<long long>::max()));
-      } else if (arg == "--csv") {
-        csv_path = args.value();
-      } else if (arg == "--runs") {
-        runs = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
-      } else if (arg == "--warmup") {
-        warmup = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
-      } else if (arg == "--device") {
-        device = static_cast<int>(args.intValue(0, std::numeric_limits<long long>::max()));
-      } else if (arg == "--quick") {
-        quick = true;
-      } else if (arg == "--grids" || arg == "--backends") {
-        const std::string list = args.value();
-        const bool first = list.find(arg == "--grids" ? "yaw" : "cpu") != std::string::npos;
-        const bool second = list.find(arg == "--grids" ? "rotation" : "cuda") != std::string::npos;
-        if (!first && !second) throw std::invalid_argument("nothing selected by " + arg + " " + list);
-        (arg == "--grids" ? want_yaw : want_cpu) = first;
-        (arg == "--grids" ? want_rotation : want_cuda) = second;
-      } else {
-        throw std::invalid_argument("unknown argument " + arg);
+bool parseOptions(int argc, char** argv, BenchOptions* o) {
+  const long long kMaxInt = std::numeric_limits<int>::max();
+  const bool run = parseToolArguments(argc, argv, kUsage, kOptionDevice | kOptionCsv, &o->tool, [&](cli::Arguments& args) {
+    if (args.is("--file")) {
+      o->file = args.value();
+    } else if (args.is("--frame")) {
+      o->frame_index = args.intValue(0, std::numeric_limits<long long>::max());
+    } else if (args.is("--runs")) {
+      o->runs = static_cast<int>(args.intValue(1, kMaxInt));
+    } else if (args.is("--warmup")) {
+      o->warmup = static_cast<int>(args.intValue(0, kMaxInt));
+    } else if (args.is("--quick")) {
+      o->quick = true;
+    } else if (args.is("--grids") || args.is("--backends")) {
+      const bool grids = args.is("--grids");
+      const std::string option = args.current();
+      bool first = false, second = false;
+      for (const std::string& item : args.listValue()) {
+        const bool is_first = item == (grids ? "yaw" : "cpu"), is_second = item == (grids ? "rotation" : "cuda");
+        if (!is_first && !is_second) throw cli::UsageError(option + ": unknown item \"" + item + "\"");
+        first = first || is_first;
+        second = second || is_second;
       }
+      (grids ? o->want_yaw : o->want_cpu) = first;
+      (grids ? o->want_rotation : o->want_cuda) = second;
+    } else {
+      return false;
     }
-    if (runs < 1) throw std::invalid_argument("--runs must be at least 1");
-  } catch (const std::exception& e) {
-    std::cerr << "cuda_voter_bench: " << e.what() << "\n";
-    usage();
-    return 1;
+    return true;
+  });
+  if (o->quick) {
+    o->runs = std::min(o->runs, 5);
+    o->warmup = std::min(o->warmup, 1);
   }
-  if (quick) {
-    runs = std::min(runs, 5);
-    warmup = std::min(warmup, 1);
-  }
+  return run;
+}
 
-  BearingFrame base;
-  std::string source = "synthetic";
-  if (!file.empty()) {
+/// The frame the file's points are resampled from: --frame K, else the one with the most matches.
+/// Throws std::runtime_error for an empty file, a frame beyond it or one with fewer than 3 matches.
+BearingFrame baseFrame(const BenchOptions& o, std::string* source) {
+  const std::vector<BearingFrame> frames = readBearingFile(o.file);
+  if (frames.empty()) throw std::runtime_error(o.file + " has no frames");
+  size_t pick = 0;
+  if (o.frame_index >= 0) {
+    if (static_cast<size_t>(o.frame_index) >= frames.size()) throw std::runtime_error("--frame beyond the file's frames");
+    pick = static_cast<size_t>(o.frame_index);
+  } else {
+    for (size_t f = 1; f < frames.size(); ++f)
+      if (frames[f].prev.size() > frames[pick].prev.size()) pick = f;
+  }
+  const BearingFrame& base = frames[pick];
+  if (base.prev.size() < 3) throw std::runtime_error("the chosen frame has fewer than 3 matches");
+  *source = o.file + " frame " + std::to_string(base.index) + " (" + std::to_string(base.prev.size()) + " matches)";
+  return base;
+}
+
+/// The points of the two series: hypotheses at 2 000 matches, matches at 10 000 hypotheses.
+struct Point {
+  const char* series;
+  uint32_t matches, hypotheses;
+};
+
+std::vector<Point> benchPoints(bool quick) {
+  const std::vector<uint32_t> hypothesis_counts =
+      quick ? std::vector<uint32_t>{100, 1000, 10000} : std::vector<uint32_t>{100, 300, 1000, 3000, 10000, 30000, 100000};
+  const std::vector<uint32_t> match_counts =
+      quick ? std::vector<uint32_t>{250, 2000} : std::vector<uint32_t>{250, 500, 1000, 2000, 4000, 8000};
+  std::vector<Point> points;
+  for (uint32_t h : hypothesis_counts) points.push_back({"hypotheses", 2000, h});
+  for (uint32_t m : match_counts) points.push_back({"matches", m, 10000});
+  return points;
+}
+
+/// The two voters with their names for the CSV.
+struct Voters {
+  std::unique_ptr<HypothesisVoter> cpu, gpu;
+  std::string cpu_name, gpu_name;
+};
+
+/// Times the voters at one point on one grid: a table line and a CSV row per voter; the number of
+/// voters that threw.
+int benchPoint(const Point& point, GridKind kind, const BearingFrame& frame, const BenchOptions& o, Voters& voters,
+               const std::string& source, CsvWriter& csv) {
+  const VoteRequest q = makeRequest(kind, frame.prev.data(), frame.cur.data(), point.matches, point.hypotheses, 1);
+  double cpu_median = 0.0;
+  int failures = 0;
+  for (int b = 0; b < 2; ++b) {
+    HypothesisVoter* voter = b == 0 ? (o.want_cpu ? voters.cpu.get() : nullptr) : voters.gpu.get();
+    if (voter == nullptr) continue;
+    Timing t;
     try {
-      const std::vector<BearingFrame> frames = readBearingFile(file);
-      if (frames.empty()) throw std::runtime_error(file + " has no frames");
-      size_t pick = 0;
-      if (frame_index >= 0) {
-        if (static_cast<size_t>(frame_index) >= frames.size()) throw std::runtime_error("--frame beyond the file's frames");
-        pick = static_cast<size_t>(frame_index);
-      } else {
-        for (size_t f = 1; f < frames.size(); ++f)
-          if (frames[f].prev.size() > frames[pick].prev.size()) pick = f;
-      }
-      base = frames[pick];
-      if (base.prev.size() < 3) throw std::runtime_error("the chosen frame has fewer than 3 matches");
-      source = file + " frame " + std::to_string(base.index) + " (" + std::to_string(base.prev.size()) + " matches)";
+      t = timeVoter(*voter, q, o.warmup, o.runs);
     } catch (const std::exception& e) {
-      std::cerr << "cuda_voter_bench: " << e.what() << "\n";
-      return 1;
+      std::fprintf(stderr, "%s: %s voter failed: %s\n", kTool, voter->name().c_str(), e.what());
+      ++failures;
+      continue;
     }
+    if (b == 0) cpu_median = t.call_median;
+    const double speedup = (b == 1 && cpu_median > 0.0) ? cpu_median / t.call_median : 0.0;
+    // Kernel time and speed-up exist only for the CUDA rows: "-" in the table, empty in the CSV.
+    char device_ms[32] = "", speedup_text[32] = "";
+    if (b == 1) {
+      std::snprintf(device_ms, sizeof device_ms, "%.5f", t.device_median);
+      if (speedup > 0.0) std::snprintf(speedup_text, sizeof speedup_text, "%.3f", speedup);
+    }
+    std::printf("%-10s %-8s %-7s %7u %7u %12.4f %12.4f %12s %9s\n", point.series, gridName(kind),
+                voter->name().c_str(), point.matches, point.hypotheses, t.call_median, t.call_p90,
+                b == 1 ? device_ms : "-", b == 1 ? speedup_text : "-");
+    csv.row("%s,%s,%s,%s,%u,%u,%d,%.5f,%.5f,%.5f,%s,%u,%d,%s,%s", point.series, gridName(kind),
+            voter->name().c_str(), csvField(b == 0 ? voters.cpu_name : voters.gpu_name).c_str(), point.matches,
+            point.hypotheses, o.runs, t.call_median, t.call_p10, t.call_p90, device_ms, t.accepted, t.winner_votes,
+            speedup_text, csvField(source).c_str());
   }
+  return failures;
+}
+
+int runBench(const BenchOptions& o) {
+  std::string source = "synthetic";
+  BearingFrame base;
+  if (!o.file.empty()) base = baseFrame(o, &source);
   auto framesWith = [&](uint32_t matches) {
-    if (!file.empty()) return resampleFrame(base, matches, 7);
+    if (!o.file.empty()) return resampleFrame(base, matches, 7);
     SyntheticOptions options;  // 30 % outliers, pure rotation
     options.matches = matches;
     return makeSyntheticFrame(options, 42);
   };
 
-  std::unique_ptr<HypothesisVoter> cpu = createCpuVoter();
-  std::unique_ptr<HypothesisVoter> gpu;
-  std::string gpu_name, why;
-  if (want_cuda) {
-    gpu = tryCudaVoter(device, &why);
-    if (gpu) {
-      gpu_name = cudaVoterStats(*gpu).device_name;
-    } else {
-      std::printf("cuda_voter_bench: GPU PART SKIPPED: %s\n"
-                  "cuda_voter_bench: timing the CPU gold voter only; no CUDA figures were measured\n",
-                  why.c_str());
-    }
+  Voters voters;
+  voters.cpu = createCpuVoter();
+  voters.cpu_name = cpuModel();
+  std::string why;
+  if (o.want_cuda) {
+    voters.gpu = openCudaVoter(kTool, o.tool.device, "timing the CPU gold voter only; no CUDA figures were measured", &why);
+    if (voters.gpu) voters.gpu_name = cudaVoterStats(*voters.gpu).device_name;
   }
-  const std::string cpu_name = cpuModel();
-  std::printf("cuda_voter_bench: bearings from %s; %d runs (median) after %d warm-up runs\n", source.c_str(), runs,
-              warmup);
-
-  FILE* csv = nullptr;
-  if (!csv_path.empty()) {
-    csv = std::fopen(csv_path.c_str(), "w");
-    if (csv == nullptr) {
-      std::fprintf(stderr, "cuda_voter_bench: cannot write %s\n", csv_path.c_str());
-      return 1;
-    }
-    std::fprintf(csv, "series,grid,backend,device,matches,hypotheses,runs,call_ms_median,call_ms_p10,call_ms_p90,"
-                      "device_ms_median,accepted,winner_votes,speedup_vs_cpu,source\n");
-  }
-
-  const std::vector<uint32_t> hypothesis_counts =
-      quick ? std::vector<uint32_t>{100, 1000, 10000} : std::vector<uint32_t>{100, 300, 1000, 3000, 10000, 30000, 100000};
-  const std::vector<uint32_t> match_counts =
-      quick ? std::vector<uint32_t>{250, 2000} : std::vector<uint32_t>{250, 500, 1000, 2000, 4000, 8000};
-  struct Point {
-    const char* series;
-    uint32_t matches, hypotheses;
-  };
-  std::vector<Point> points;
-  for (uint32_t h : hypothesis_counts) points.push_back({"hypotheses", 2000, h});
-  for (uint32_t m : match_counts) points.push_back({"matches", m, 10000});
-
+  std::printf("%s: bearings from %s; %d runs (median) after %d warm-up runs\n", kTool, source.c_str(), o.runs,
+              o.warmup);
+  CsvWriter csv(o.tool.csv_path, "series,grid,backend,device,matches,hypotheses,runs,call_ms_median,call_ms_p10,"
+                                 "call_ms_p90,device_ms_median,accepted,winner_votes,speedup_vs_cpu,source");
   std::printf("%-10s %-8s %-7s %7s %7s %12s %12s %12s %9s\n", "series", "grid", "backend", "matches", "hyps",
               "call_ms_med", "call_ms_p90", "kernel_ms", "speedup");
   int failures = 0;
-  for (const Point& point : points) {
+  for (const Point& point : benchPoints(o.quick)) {
     const BearingFrame frame = framesWith(point.matches);
-    for (GridKind kind : {GridKind::kYaw, GridKind::kRotation}) {
-      if ((kind == GridKind::kYaw && !want_yaw) || (kind == GridKind::kRotation && !want_rotation)) continue;
-      const VoteRequest q = makeRequest(kind, frame.prev.data(), frame.cur.data(), point.matches, point.hypotheses, 1);
-      double cpu_median = 0.0;
-      for (int b = 0; b < 2; ++b) {
-        HypothesisVoter* voter = b == 0 ? (want_cpu ? cpu.get() : nullptr) : gpu.get();
-        if (voter == nullptr) continue;
-        Timing t;
-        try {
-          t = timeVoter(*voter, q, warmup, runs);
-        } catch (const std::exception& e) {
-          std::fprintf(stderr, "cuda_voter_bench: %s voter failed: %s\n", voter->name().c_str(), e.what());
-          ++failures;
-          continue;
-        }
-        if (b == 0) cpu_median = t.call_median;
-        const double speedup = (b == 1 && cpu_median > 0.0) ? cpu_median / t.call_median : 0.0;
-        if (b == 1)
-          std::printf("%-10s %-8s %-7s %7u %7u %12.4f %12.4f %12.4f %9.1f\n", point.series, gridName(kind),
-                      voter->name().c_str(), point.matches, point.hypotheses, t.call_median, t.call_p90,
-                      t.device_median, speedup);
-        else
-          std::printf("%-10s %-8s %-7s %7u %7u %12.4f %12.4f %12s %9s\n", point.series, gridName(kind),
-                      voter->name().c_str(), point.matches, point.hypotheses, t.call_median, t.call_p90, "-", "-");
-        if (csv != nullptr) {
-          // Kernel time and speed-up exist only for the CUDA rows: left empty for the CPU ones.
-          char device_ms[32] = "", speedup_text[32] = "";
-          if (b == 1) {
-            std::snprintf(device_ms, sizeof device_ms, "%.5f", t.device_median);
-            if (speedup > 0.0) std::snprintf(speedup_text, sizeof speedup_text, "%.3f", speedup);
-          }
-          std::fprintf(csv, "%s,%s,%s,%s,%u,%u,%d,%.5f,%.5f,%.5f,%s,%u,%d,%s,%s\n", point.series, gridName(kind),
-                       voter->name().c_str(), csvField(b == 0 ? cpu_name : gpu_name).c_str(), point.matches,
-                       point.hypotheses, runs, t.call_median, t.call_p10, t.call_p90, device_ms, t.accepted,
-                       t.winner_votes, speedup_text, csvField(source).c_str());
-        }
-      }
-    }
+    for (GridKind kind : {GridKind::kYaw, GridKind::kRotation})
+      if (kind == GridKind::kYaw ? o.want_yaw : o.want_rotation)
+        failures += benchPoint(point, kind, frame, o, voters, source, csv);
   }
-  if (csv != nullptr) {
-    std::fclose(csv);
-    std::printf("cuda_voter_bench: wrote %s\n", csv_path.c_str());
-  }
-  if (gpu) {
-    const CudaVoterStats s = cudaVoterStats(*gpu);
-    std::printf("cuda_voter_bench: GPU %s; %llu buffer reallocations after construction (growing to the largest"
-                " frame)\n",
-                gpu_name.c_str(), static_cast<unsigned long long>(s.reallocations));
-  } else if (want_cuda) {
-    std::printf("cuda_voter_bench: CUDA rows skipped: %s\n", why.c_str());
+  if (csv) std::printf("%s: wrote %s\n", kTool, o.tool.csv_path.c_str());
+  if (voters.gpu) {
+    const CudaVoterStats s = cudaVoterStats(*voters.gpu);
+    std::printf("%s: GPU %s; %llu buffer reallocations after construction (growing to the largest frame)\n", kTool,
+                voters.gpu_name.c_str(), static_cast<unsigned long long>(s.reallocations));
+  } else if (o.want_cuda) {
+    std::printf("%s: CUDA rows skipped: %s\n", kTool, why.c_str());
   }
   return failures > 0 ? 1 : 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return cli::runCommand(kTool, kUsage, [&]() {
+    BenchOptions options;
+    if (!parseOptions(argc, argv, &options)) return 0;
+    return runBench(options);
+  });
 }

@@ -86,7 +86,7 @@ struct EstimatorSettings {
 /// Standard deviation per axis [rad] added to every vote-method rotation covariance from refined
 /// (sub-pixel) positions, 0.015 deg: the errors no residual shows (calibration, time stamps).
 /// Calibrated once on kitti_turn, kitti_straight and euroc_mh01_shake together, with each truth's
-/// own error in the evaluation (README, "Covariance model").
+/// own error in the evaluation (doc/covariance.md).
 constexpr double kRefinedPositionsCovarianceFloor = 0.015 * kDegToRad;
 /// The same for integer positions, 0.035 deg. FAST's integer corners shift alike under motion blur,
 /// an error shared by every match that neither the residuals nor their spread show; this model
@@ -167,13 +167,13 @@ struct VoteDiagnostics {
   /// Inliers the covariance counts as independent (at most the inliers). With refined positions,
   /// the inliers over the factor by which the spread of the rotation over spatial groups of them
   /// exceeds sigma^2 (J^T W J)^-1; with integer ones, at most kIntegerPositionsEffectiveMatches
-  /// (RotationEstimator::setRefinedPositions; README, "Covariance model").
+  /// (RotationEstimator::setRefinedPositions; doc/covariance.md).
   double effective_matches = 0.0;
   /// Matches whose residual lies between one and three inlier gates, per inlier (refined positions
   /// only; 0 otherwise): how many matches are located a little worse than the inliers.
   double near_miss_share = 0.0;
   /// The covariance also took the spread of refits without each spatial group of the matches (run
-  /// when near_miss_share is 0.1 or more; README, "Covariance model").
+  /// when near_miss_share is 0.1 or more; doc/covariance.md).
   bool refit_jackknife = false;
 };
 

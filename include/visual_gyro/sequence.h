@@ -20,7 +20,7 @@ struct GyroSample {
 constexpr double kKittiPosesTiltSigmaDeg = 0.03;
 /// Error [deg] of KITTI's poses about the camera's y axis (heading): the device's specified
 /// heading accuracy. On kitti_straight's first frames every part of the image agrees on a yaw
-/// 0.10-0.15 deg from the poses' (README, "Covariance model").
+/// 0.10-0.15 deg from the poses' (doc/covariance.md).
 constexpr double kKittiPosesHeadingSigmaDeg = 0.1;
 /// Per-axis error [deg] of EuRoC's state_groundtruth_estimate0 on one 50 ms frame-to-frame
 /// rotation: its orientation between laser-tracker fixes is the ADIS16448's integrated rate, whose

@@ -1,8 +1,9 @@
 // One description per setting: name, type, default (the settings struct's initialiser), accepted
-// range, unit and a one-line doc, with the code that reads and writes it. Validation, the command
-// line (evaluate --set), the nodelet's parameters and dynamic_reconfigure all go through these
-// descriptions; a test checks cfg/VisualGyro.cfg, config/visual_gyro.yaml and the README against
-// them. Plain C++ (no Eigen, no OpenCV).
+// values, unit, a one-line doc, tier (user, expert, paper-only) and whether it changes live, with
+// the code that reads and writes it. Validation, the command line (evaluate --set), the nodelet's
+// start-up parameters and dynamic_reconfigure all go through these descriptions (applyField), and
+// cfg/VisualGyro.cfg, config/visual_gyro.yaml and the settings tables of the docs are generated
+// from them (settings_files). Plain C++ (no Eigen, no OpenCV).
 #pragma once
 
 #include <algorithm>
@@ -18,52 +19,86 @@
 
 namespace visual_gyro {
 
-/// The value type of a setting, as dynamic_reconfigure knows them.
-enum class SettingType { kBool, kInt, kDouble, kString };
+/// The value type of a setting: dynamic_reconfigure's four, and a list of numbers (read once at
+/// start, never live: dynamic_reconfigure has no list type).
+enum class SettingType { kBool, kInt, kDouble, kString, kDoubleList };
 
-/// One setting of a settings struct S.
-template <class S>
-struct SettingField {
-  std::string name;       ///< as in the struct, the cfg, the yaml and `evaluate --set`
+/// Who a setting is for: kUser (the few a user sets: the README's table), kExpert (tuning and
+/// studies), kPaperOnly (read only by method `paper`, the faithful reproduction).
+enum class SettingTier { kUser, kExpert, kPaperOnly };
+
+/// "user", "expert", "paper-only".
+inline const char* settingTierName(SettingTier tier) {
+  switch (tier) {
+    case SettingTier::kUser: return "user";
+    case SettingTier::kExpert: return "expert";
+    case SettingTier::kPaperOnly: return "paper-only";
+  }
+  return "?";
+}
+
+/// What a setting is, apart from the struct holding it: name, type, accepted values, unit, doc,
+/// tier and whether it can change while running. Every check of a value goes through checkNumber
+/// or checkChoice, so that the command line, the node's start-up parameters and
+/// dynamic_reconfigure accept exactly the same values.
+struct SettingSpec {
+  std::string name;  ///< as in the struct, the cfg, the yaml and `evaluate --set`
   SettingType type = SettingType::kDouble;
-  /// Inclusive range of a number (kInt, kDouble); validation accepts exactly [min, max].
+  /// Range of a number (kInt, kDouble; each element of kDoubleList): [min, max], or (min, max]
+  /// when min_exclusive. Validation accepts exactly this (and `special`); NaN and infinities never.
   double min = 0.0, max = 0.0;
+  bool min_exclusive = false;
+  /// A value outside the range that is accepted too, with its meaning (e.g. 0: "per frame").
+  bool has_special = false;
+  double special = 0.0;
+  std::string special_doc;
   std::vector<std::string> choices;  ///< kString: the accepted values; empty: any text
   std::string unit;                  ///< e.g. "deg", "px", "s"; "" when none
   std::string doc;                   ///< one line
-  /// The value of `settings` as text (numbers as the shortest exact decimal, bools true/false).
-  std::function<std::string(const S&)> text;
-  /// Parses `value` and stores it; returns "" or why the text is not a value of this type. The
-  /// range is checked by checkRange, not here, so that a caller can report it separately.
-  std::function<std::string(S*, const std::string&)> parse;
-  /// The value as a number (kInt, kDouble, kBool as 0/1); NaN for text.
-  std::function<double(const S&)> number;
+  SettingTier tier = SettingTier::kExpert;
+  /// true: changes while running (dynamic_reconfigure); false: read once at start.
+  bool live = true;
 
-  /// "" when the value in `settings` is in range (or one of the choices), else a message naming
-  /// the setting, its value, the range and the unit.
-  std::string checkRange(const S& settings) const {
-    if (type == SettingType::kString) {
-      if (choices.empty()) return "";
-      const std::string v = text(settings);
-      for (const auto& c : choices)
-        if (c == v) return "";
-      std::string list;
-      for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
-      return name + " must be one of " + list + ", got '" + v + "'";
+  /// "" when `v` (written `text`) is an accepted number, else a message naming the setting, its
+  /// value and what is accepted.
+  std::string checkNumber(double v, const std::string& text) const {
+    if (has_special && v == special) return "";
+    if (std::isfinite(v) && (min_exclusive ? v > min : v >= min) && v <= max) return "";
+    const std::string special_text = has_special ? formatNumber(special) + " (" + special_doc + ") or " : "";
+    return name + (type == SettingType::kDoubleList ? " must hold numbers " : " must be ") + special_text + "in " +
+           (min_exclusive ? "(" : "[") + formatNumber(min) + ", " + formatNumber(max) + "]" +
+           (unit.empty() ? "" : " " + unit) + ", got " + text;
+  }
+
+  /// "" when `text` is one of the choices (or there are none), else a message naming the setting.
+  std::string checkChoice(const std::string& text) const {
+    if (choices.empty()) return "";
+    for (const auto& c : choices)
+      if (c == text) return "";
+    return name + " must be one of " + joined(choices, ", ") + ", got '" + text + "'";
+  }
+
+  /// The accepted values for people: "1 … 254 grey levels", "over 0, up to 1000000 (rad/s)^2",
+  /// "0 (per frame) or 8 … 16", "true, false", "vote, paper", "any text"; `to` joins a range's ends.
+  std::string acceptedText(const std::string& to = " … ") const {
+    std::string text;
+    switch (type) {
+      case SettingType::kBool: return "true, false";
+      case SettingType::kString: return choices.empty() ? "any text" : joined(choices, ", ");
+      case SettingType::kDoubleList: text = "numbers in "; break;
+      default: break;
     }
-    if (type == SettingType::kBool) return "";
-    const double v = number(settings);
-    if (std::isfinite(v) && v >= min && v <= max) return "";
-    std::ostringstream out;
-    out << name << " must be in [" << formatNumber(min) << ", " << formatNumber(max) << "]"
-        << (unit.empty() ? "" : " " + unit) << ", got " << text(settings);
-    return out.str();
+    if (has_special) text += formatNumber(special) + " (" + special_doc + ") or ";
+    text += min_exclusive ? "over " + formatNumber(min) + ", up to " + formatNumber(max)
+                          : formatNumber(min) + to + formatNumber(max);
+    return unit.empty() ? text : text + " " + unit;
   }
 
   /// Shortest text that reads back as the same double.
   static std::string formatNumber(double v) {
     // Whole numbers as integers (10000000, not 1e+07).
     if (std::isfinite(v) && v == std::floor(v) && std::abs(v) < 1e15) return std::to_string(static_cast<long long>(v));
+    if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
     for (int precision = 6; precision <= 17; ++precision) {
       std::ostringstream out;
       out.precision(precision);
@@ -74,6 +109,39 @@ struct SettingField {
     out.precision(17);
     out << v;
     return out.str();
+  }
+
+  /// `parts` joined with `separator`.
+  static std::string joined(const std::vector<std::string>& parts, const std::string& separator) {
+    std::string text;
+    for (const auto& p : parts) text += (text.empty() ? "" : separator) + p;
+    return text;
+  }
+};
+
+/// One setting of a settings struct S: its spec and the code that reads and writes it.
+template <class S>
+struct SettingField : SettingSpec {
+  /// The value of `settings` as text (numbers as the shortest exact decimal, bools true/false,
+  /// lists as [a, b]).
+  std::function<std::string(const S&)> text;
+  /// Parses `value` and stores it; returns "" or why the text is not a value of this type. The
+  /// range is checked by checkRange, not here, so that a caller can report it separately.
+  std::function<std::string(S*, const std::string&)> parse;
+  /// The value as numbers: one for kInt, kDouble, kBool (0/1), the elements of kDoubleList, none
+  /// for text.
+  std::function<std::vector<double>(const S&)> numbers;
+
+  /// "" when the value in `settings` is accepted (checkNumber, checkChoice), else a message naming
+  /// the setting, its value, what is accepted and the unit.
+  std::string checkRange(const S& settings) const {
+    if (type == SettingType::kString) return checkChoice(text(settings));
+    if (type == SettingType::kBool) return "";
+    for (const double v : numbers(settings)) {
+      const std::string why = checkNumber(v, type == SettingType::kDoubleList ? text(settings) : formatNumber(v));
+      if (!why.empty()) return why;
+    }
+    return "";
   }
 };
 
@@ -117,6 +185,29 @@ inline std::string parseBoolean(const std::string& text, bool* out) {
   return "'" + text + "' is not a boolean (true/false)";
 }
 
+inline std::string parseRealList(const std::string& text, std::vector<double>* out) {
+  // "[a, b, c]", "a, b, c" or "a b c"; "[]" and "" are the empty list.
+  std::string body = text;
+  const size_t first = body.find_first_not_of(" \t");
+  const size_t last = body.find_last_not_of(" \t");
+  body = first == std::string::npos ? "" : body.substr(first, last - first + 1);
+  if (!body.empty() && body.front() == '[') {
+    if (body.back() != ']') return "'" + text + "' is not a list of numbers";
+    body = body.substr(1, body.size() - 2);
+  }
+  std::replace(body.begin(), body.end(), ',', ' ');
+  std::istringstream in(body);
+  std::vector<double> values;
+  std::string item;
+  while (in >> item) {
+    double v = 0.0;
+    if (!parseReal(item, &v).empty()) return "'" + text + "' is not a list of numbers";
+    values.push_back(v);
+  }
+  *out = values;
+  return "";
+}
+
 }  // namespace setting_detail
 
 /// A double member, valid in [min, max].
@@ -131,7 +222,7 @@ SettingField<S> doubleField(std::string name, double S::*member, double min, dou
   f.unit = std::move(unit);
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return SettingField<S>::formatNumber(s.*member); };
-  f.number = [member](const S& s) { return s.*member; };
+  f.numbers = [member](const S& s) { return std::vector<double>{s.*member}; };
   f.parse = [member](S* s, const std::string& v) {
     double x = 0.0;
     const std::string why = setting_detail::parseReal(v, &x);
@@ -153,7 +244,7 @@ SettingField<S> intField(std::string name, Int S::*member, long long min, long l
   f.unit = std::move(unit);
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return std::to_string(s.*member); };
-  f.number = [member](const S& s) { return static_cast<double>(s.*member); };
+  f.numbers = [member](const S& s) { return std::vector<double>{static_cast<double>(s.*member)}; };
   f.parse = [member](S* s, const std::string& v) {
     long long x = 0;
     // Parsed within the member type's range; the setting's range is checked separately.
@@ -177,10 +268,55 @@ SettingField<S> boolField(std::string name, bool S::*member, std::string doc) {
   f.max = 1;
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return std::string(s.*member ? "true" : "false"); };
-  f.number = [member](const S& s) { return s.*member ? 1.0 : 0.0; };
+  f.numbers = [member](const S& s) { return std::vector<double>{s.*member ? 1.0 : 0.0}; };
   f.parse = [member](S* s, const std::string& v) {
     bool x = false;
     const std::string why = setting_detail::parseBoolean(v, &x);
+    if (why.empty()) s->*member = x;
+    return why;
+  };
+  return f;
+}
+
+/// A text member: one of `choices`, or any text when `choices` is empty.
+template <class S>
+SettingField<S> stringField(std::string name, std::string S::*member, std::vector<std::string> choices,
+                            std::string doc) {
+  SettingField<S> f;
+  f.name = std::move(name);
+  f.type = SettingType::kString;
+  f.choices = std::move(choices);
+  f.doc = std::move(doc);
+  f.text = [member](const S& s) { return s.*member; };
+  f.numbers = [](const S&) { return std::vector<double>(); };
+  f.parse = [member](S* s, const std::string& v) {
+    s->*member = v;
+    return std::string();
+  };
+  return f;
+}
+
+/// A list of doubles, each valid in [min, max] (any length).
+template <class S>
+SettingField<S> doubleListField(std::string name, std::vector<double> S::*member, double min, double max,
+                                std::string unit, std::string doc) {
+  SettingField<S> f;
+  f.name = std::move(name);
+  f.type = SettingType::kDoubleList;
+  f.min = min;
+  f.max = max;
+  f.unit = std::move(unit);
+  f.doc = std::move(doc);
+  f.live = false;
+  f.text = [member](const S& s) {
+    std::vector<std::string> items;
+    for (const double v : s.*member) items.push_back(SettingField<S>::formatNumber(v));
+    return "[" + SettingSpec::joined(items, ", ") + "]";
+  };
+  f.numbers = [member](const S& s) { return s.*member; };
+  f.parse = [member](S* s, const std::string& v) {
+    std::vector<double> x;
+    const std::string why = setting_detail::parseRealList(v, &x);
     if (why.empty()) s->*member = x;
     return why;
   };
@@ -201,18 +337,16 @@ SettingField<S> enumField(std::string name, E S::*member, std::vector<std::pair<
       if (n.second == s.*member) return n.first;
     return std::string("?");
   };
-  f.number = [](const S&) { return std::numeric_limits<double>::quiet_NaN(); };
-  const std::string setting = f.name;
-  f.parse = [member, names, setting](S* s, const std::string& v) {
+  f.numbers = [](const S&) { return std::vector<double>(); };
+  const SettingSpec spec = f;
+  f.parse = [member, names, spec](S* s, const std::string& v) {
     for (const auto& n : names) {
       if (n.first == v) {
         s->*member = n.second;
         return std::string();
       }
     }
-    std::string list;
-    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n.first;
-    return setting + " must be one of " + list + ", got '" + v + "'";
+    return spec.checkChoice(v);
   };
   return f;
 }
@@ -222,18 +356,12 @@ SettingField<S> enumField(std::string name, E S::*member, std::vector<std::pair<
 template <class O, class S>
 SettingField<O> nestedField(const SettingField<S>& inner, S O::*part) {
   SettingField<O> f;
-  f.name = inner.name;
-  f.type = inner.type;
-  f.min = inner.min;
-  f.max = inner.max;
-  f.choices = inner.choices;
-  f.unit = inner.unit;
-  f.doc = inner.doc;
+  static_cast<SettingSpec&>(f) = inner;
   const auto text = inner.text;
-  const auto number = inner.number;
+  const auto numbers = inner.numbers;
   const auto parse = inner.parse;
   f.text = [text, part](const O& o) { return text(o.*part); };
-  f.number = [number, part](const O& o) { return number(o.*part); };
+  f.numbers = [numbers, part](const O& o) { return numbers(o.*part); };
   f.parse = [parse, part](O* o, const std::string& v) { return parse(&(o->*part), v); };
   return f;
 }
@@ -246,6 +374,68 @@ std::string checkRanges(const S& settings, const std::vector<SettingField<S>>& f
     if (!why.empty()) return why;
   }
   return "";
+}
+
+/// Sets the setting `name` of `settings` from text through the gate every setting goes through:
+/// "" when `value` parses and is accepted (checkRange), else why, naming the setting (and
+/// *settings is unchanged).
+template <class S>
+std::string applyField(S* settings, const std::vector<SettingField<S>>& fields, const std::string& name,
+                       const std::string& value) {
+  for (const auto& f : fields) {
+    if (f.name != name) continue;
+    S changed = *settings;
+    std::string why = f.parse(&changed, value);
+    if (!why.empty()) return why.find(name) == std::string::npos ? name + ": " + why : why;
+    why = f.checkRange(changed);
+    if (!why.empty()) return why;
+    *settings = changed;
+    return "";
+  }
+  return "unknown setting '" + name + "'";
+}
+
+/// One row of a settings table for people: a setting and its default as text.
+struct SettingRow {
+  const SettingSpec* spec = nullptr;
+  std::string default_text;
+};
+
+/// The rows of `fields` with their values in `defaults`, in table order.
+template <class S>
+std::vector<SettingRow> settingRows(const std::vector<SettingField<S>>& fields, const S& defaults) {
+  std::vector<SettingRow> rows;
+  for (const auto& f : fields) rows.push_back({&f, f.text(defaults)});
+  return rows;
+}
+
+/// A Markdown table of `rows`: setting, default, accepted values, (with `with_live`: "live" or
+/// "at start"), meaning. Every name in backquotes.
+inline std::string settingsMarkdown(const std::vector<SettingRow>& rows, bool with_live) {
+  std::ostringstream out;
+  out << "| setting | default | accepted |" << (with_live ? " changes |" : "") << " meaning |\n"
+      << "| --- | --- | --- |" << (with_live ? " --- |" : "") << " --- |\n";
+  for (const SettingRow& r : rows) {
+    const std::string value = r.default_text.empty() ? "\"\"" : r.default_text;
+    out << "| `" << r.spec->name << "` | " << value << " | " << r.spec->acceptedText() << " |"
+        << (with_live ? (r.spec->live ? " live |" : " at start |") : "") << " " << r.spec->doc << " |\n";
+  }
+  return out.str();
+}
+
+/// `rows` as one Markdown table per tier (user, expert, paper-only; a tier without rows left out),
+/// each under a bold label ("**user settings**"), with the live column.
+inline std::string tieredSettingsMarkdown(const std::vector<SettingRow>& rows) {
+  std::string text;
+  for (const SettingTier tier : {SettingTier::kUser, SettingTier::kExpert, SettingTier::kPaperOnly}) {
+    std::vector<SettingRow> part;
+    for (const SettingRow& r : rows)
+      if (r.spec->tier == tier) part.push_back(r);
+    if (part.empty()) continue;
+    if (!text.empty()) text += "\n";
+    text += std::string("**") + settingTierName(tier) + " settings**\n\n" + settingsMarkdown(part, true);
+  }
+  return text;
 }
 
 }  // namespace visual_gyro

@@ -73,7 +73,8 @@ struct VisualGyroSettings {
   FrontEndSettings front_end;
   EstimatorSettings estimator;
   /// false: front end only; FrameResult then holds the matches but no rotation (used to run
-  /// baseline estimators on exactly the same matches).
+  /// baseline estimators on exactly the same matches). An option of the evaluation (`evaluate`,
+  /// frame_pairs), not a setting: not in the settings table, the cfg, the yaml or the docs.
   bool run_estimator = true;
   /// [s] A time step below this is skipped (the frame is not used): no camera delivers frames
   /// this close, so such a stamp is wrong and a rate computed over it would be huge.
@@ -84,18 +85,20 @@ struct VisualGyroSettings {
 };
 
 /// Every setting of the pipeline (front end, estimator and its own), each defined once with its
-/// range, unit and doc. The names are unique across the three.
+/// range, unit, doc, tier and whether it changes live. The names are unique across the three.
 const std::vector<SettingField<VisualGyroSettings>>& visualGyroSettingFields();
 
 /// The setting called `name`, or nullptr.
 const SettingField<VisualGyroSettings>* findSetting(const std::string& name);
 
-/// Sets one setting from text (as `evaluate --set name=value` and the nodelet's parameters do):
-/// "" when `value` parses and is in range, else why not (and *settings is unchanged).
+/// Sets one setting from text (as `evaluate --set name=value`, the nodelet's start-up parameters
+/// and dynamic_reconfigure do): "" when `value` parses and is accepted, else why, naming the
+/// setting (and *settings is unchanged). NaN and infinities are never accepted.
 std::string applySetting(VisualGyroSettings* settings, const std::string& name, const std::string& value);
 
-/// The settings as the README's Markdown table (name, default, accepted values, meaning), one row
-/// per setting in table order: `evaluate --settings-table` prints it.
+/// The settings as Markdown tables (setting, default, accepted values, live or at start, meaning),
+/// one per tier: user, expert, paper-only, each under a bold label; `evaluate --settings-table`
+/// prints it, and doc/ros.md holds it between its settings-table markers.
 std::string settingsMarkdownTable();
 
 /// "" when the settings are usable: every setting in its range (there are no rules across

@@ -167,22 +167,19 @@ TestOffsets testOffsets(std::ptrdiff_t step) {
   return offsets;
 }
 
-TestKernel kernelFor(KernelSet set) {
-  switch (set) {
-    case KernelSet::kPortable:
+TestKernel kernelFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
       return testsPortable;
-    case KernelSet::kAvx2:
 #if defined(__x86_64__) && defined(__GNUC__)
-      if (cpu_features::hasAvx2()) return testsAvx2;
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? testsAvx2 : nullptr;
+    case cpu::CpuLevel::kAvx512Vbmi:
+      return cpu::runs(level) ? testsAvx512Vbmi : nullptr;
 #endif
-      return nullptr;
-    case KernelSet::kAvx512Vbmi:
-#if defined(__x86_64__) && defined(__GNUC__)
-      if (cpu_features::hasAvx512Vbmi()) return testsAvx512Vbmi;
-#endif
+    default:
       return nullptr;
   }
-  return nullptr;
 }
 
 namespace {
@@ -221,16 +218,19 @@ TestKernel fasterKernel(TestKernel first, TestKernel second) {
   return least[1] < least[0] ? second : first;
 }
 
+TestKernel selectKernel(cpu::CpuLevel at_most) {
+  const TestKernel chosen = cpu::selectKernel(kernelFor, at_most);
+  // The one exception to choosing by level: whether hardware gathers beat plain loads depends on
+  // the CPU, and no feature flag tells: twice as fast on a Xeon, twice as slow on an AMD EPYC of
+  // family 23 (0.15 against 0.29 and 1.6 against 0.8 ms for 1 500 corners of a KITTI frame). So
+  // when the level's kernel is the gather one, it is timed once against the portable kernel.
+  if (chosen != nullptr && chosen == kernelFor(cpu::CpuLevel::kAvx2))
+    return fasterKernel(chosen, kernelFor(cpu::CpuLevel::kPortable));
+  return chosen;
+}
+
 TestKernel selectKernel() {
-  static const TestKernel kernel = [] {
-    if (const TestKernel permute = kernelFor(KernelSet::kAvx512Vbmi)) return permute;
-    const TestKernel portable = kernelFor(KernelSet::kPortable);
-    // Whether hardware gathers beat plain loads depends on the CPU, and no feature flag tells:
-    // twice as fast on a Xeon, twice as slow on an AMD EPYC of family 23 (0.15 against 0.29 and
-    // 1.6 against 0.8 ms for 1 500 corners of a KITTI frame). So the two are timed once.
-    if (const TestKernel gather = kernelFor(KernelSet::kAvx2)) return fasterKernel(gather, portable);
-    return portable;
-  }();
+  static const TestKernel kernel = selectKernel(cpu::activeLevel());
   return kernel;
 }
 

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "cpu_features.h"
 #include "visual_gyro/feature_front_end.h"
 
 namespace visual_gyro {
@@ -33,23 +34,23 @@ using TestKernel = BriefDescriptor (*)(const uint8_t* centre, std::ptrdiff_t ste
 /// Bytes past a patch pixel that a vector kernel may read (the gathers read 32-bit words).
 constexpr int kBytesPastPatch = 3;
 
-/// The instruction sets the kernels are built for.
-enum class KernelSet {
-  kPortable,   ///< the pixels read one at a time into arrays, compared 16 at a time (SSE2) or one by one
-  kAvx2,       ///< hardware gathers, eight tests per step (x86-64 CPUs that report AVX2)
-  kAvx512Vbmi, ///< the patch in 16 registers, byte permutes, 64 tests per step (AVX-512 BW and VBMI)
-};
-
-/// The kernel for `set`, or nullptr when this build or this CPU cannot run it. All give the
-/// portable kernel's bits; the tests compare each with it.
-TestKernel kernelFor(KernelSet set);
+/// The kernel of `level`, or nullptr for levels without one of their own or when this build or
+/// this CPU cannot run it:
+///  - kPortable: the pixels read one at a time into arrays, compared 16 at a time (SSE2) or one by one;
+///  - kAvx2: hardware gathers, eight tests per step;
+///  - kAvx512Vbmi: the patch in 16 registers, byte permutes, 64 tests per step.
+/// All give the portable kernel's bits; the tests compare each with it.
+TestKernel kernelFor(cpu::CpuLevel level);
 
 /// Whichever of two kernels describes a few hundred corners of a noise image in less time on this
 /// CPU (`first` on a tie). Takes about a millisecond; allocates.
 TestKernel fasterKernel(TestKernel first, TestKernel second);
 
-/// The fastest kernel this build and CPU run, chosen once: the permute kernel where the CPU has
-/// it, else the faster of the gather and the portable kernel as fasterKernel measures them.
+/// The kernel of the highest level up to `at_most` (cpu::selectKernel), with one exception: when
+/// that is the AVX2 gather kernel, whichever of it and the portable kernel fasterKernel measures
+/// faster (no feature flag tells whether this CPU's gathers are fast).
+TestKernel selectKernel(cpu::CpuLevel at_most);
+/// selectKernel(cpu::activeLevel()), chosen once.
 TestKernel selectKernel();
 
 }  // namespace brief_kernels

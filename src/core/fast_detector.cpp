@@ -437,33 +437,29 @@ void detectWithOpenCv(const cv::Mat& image, const cv::Rect& area, int threshold,
 
 }  // namespace
 
-Detector detectorFor(InstructionSet isa) {
-  switch (isa) {
-    case InstructionSet::kPortable:
+Detector detectorFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
       return detectPortable;
-    case InstructionSet::kSse2:
 #if defined(__x86_64__) && defined(__GNUC__)
-      return detectSse2;
-#else
-      return nullptr;
+    case cpu::CpuLevel::kSse2:
+      return cpu::runs(level) ? detectSse2 : nullptr;
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? detectAvx2 : nullptr;
 #endif
-    case InstructionSet::kAvx2:
-#if defined(__x86_64__) && defined(__GNUC__)
-      if (cpu_features::hasAvx2()) return detectAvx2;
-#endif
+    default:
       return nullptr;
-    case InstructionSet::kOpenCv:
-      return detectWithOpenCv;
   }
-  return nullptr;
 }
 
-Detector selectDetector() {
-  for (const InstructionSet isa : {InstructionSet::kAvx2, InstructionSet::kSse2}) {
-    if (const Detector detector = detectorFor(isa)) return detector;
-  }
+Detector openCvDetector() { return detectWithOpenCv; }
+
+Detector selectDetector(cpu::CpuLevel at_most) {
+  if (const Detector detector = cpu::selectKernel(detectorFor, at_most, cpu::CpuLevel::kSse2)) return detector;
   return detectWithOpenCv;
 }
+
+Detector selectDetector() { return selectDetector(cpu::activeLevel()); }
 
 void detect(const cv::Mat& image, const cv::Rect& area, int threshold, std::vector<uint8_t>* scratch,
             std::vector<cv::Point3i>* corners) {

@@ -7,6 +7,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "cpu_features.h"
+
 namespace visual_gyro {
 namespace fast_detector {
 
@@ -36,21 +38,21 @@ namespace fast_detector {
 using Detector = void (*)(const cv::Mat& image, const cv::Rect& area, int threshold,
                           std::vector<uint8_t>* scratch, std::vector<cv::Point3i>* corners);
 
-/// The instruction sets a detector can be built for.
-enum class InstructionSet {
-  kPortable,  ///< plain C++, one pixel at a time (any CPU)
-  kSse2,      ///< 16 pixels at a time with SSE2 (every x86-64 CPU)
-  kAvx2,      ///< 32 pixels at a time (x86-64 CPUs that report AVX2)
-  kOpenCv,    ///< cv::FAST itself (for CPUs with no vector detector here)
-  // The vector detectors take the portable path for areas narrower than a block plus 6 columns.
-};
+/// The detector of `level`, or nullptr for levels without one of their own or when this build or
+/// this CPU cannot run it: kPortable (plain C++, one pixel at a time), kSse2 (16 pixels at a
+/// time, every x86-64 CPU), kAvx2 (32 pixels at a time). The vector detectors take the portable
+/// path for areas narrower than a block plus 6 columns. All give the same result; tests compare
+/// each with cv::FAST.
+Detector detectorFor(cpu::CpuLevel level);
 
-/// The detector for `isa`, or nullptr when this build or this CPU cannot run it. All give the
-/// same result; tests compare each with cv::FAST.
-Detector detectorFor(InstructionSet isa);
+/// cv::FAST itself, for CPUs with no vector detector here.
+Detector openCvDetector();
 
-/// The fastest detector this CPU runs: AVX2 when it reports it, else SSE2 on x86-64, else
-/// cv::FAST (whose own vector code beats the portable path several times over).
+/// The detector of the highest level from `at_most` down to kSse2 (cpu::selectKernel), else
+/// cv::FAST (whose own vector code beats the portable path several times over): AVX2 where the
+/// CPU has it, else SSE2 on x86-64, else cv::FAST.
+Detector selectDetector(cpu::CpuLevel at_most);
+/// selectDetector(cpu::activeLevel()).
 Detector selectDetector();
 
 /// Runs selectDetector()'s detector (chosen once).

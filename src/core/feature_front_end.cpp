@@ -3,7 +3,6 @@
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/random.h"
 #include "brief_kernels.h"
-#include "cpu_features.h"
 #include "fast_detector.h"
 #include "fixed_point_gaussian.h"
 #include "hamming_kernels.h"

@@ -136,7 +136,7 @@ void filterGeneric(const cv::Mat& src, const Weights& w, cv::Mat* dst, uint16_t*
 // instructions than the byte-split sums of filterRows. madd is signed, so the horizontal values are
 // stored offset by -32768 (their top bit flipped); over the taps the offset sums to
 // -32768 * 256 = -2^23 and is added back before the rounding shift, so the result is exactly
-// OpenCV's (sum w H + 2^15) >> 16. Used only when the CPU reports AVX2 (runtime dispatch).
+// OpenCV's (sum w H + 2^15) >> 16. Used only when the CPU has AVX2 (filterFor).
 __attribute__((target("avx2"))) void filterAvx2(const cv::Mat& src, const Weights& w,
                                                   cv::Mat* dst, uint16_t* buffer) {
   constexpr uint16_t kBias = 0x8000;
@@ -226,15 +226,29 @@ __attribute__((target("avx2,avx512f,avx512bw"))) void filterAvx512(const cv::Mat
 
 size_t bufferSize(int cols, int rows) { return static_cast<size_t>(cols) * (rows + 2) + kTaps - 1; }
 
-Filter selectFilter() { return availableFilters().back().second; }
+Filter filterFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
+      return filterGeneric;
+#if defined(__x86_64__) && defined(__GNUC__)
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? filterAvx2 : nullptr;
+    case cpu::CpuLevel::kAvx512Bw:
+      return cpu::runs(level) ? filterAvx512 : nullptr;
+#endif
+    default:
+      return nullptr;
+  }
+}
+
+Filter selectFilter(cpu::CpuLevel at_most) { return cpu::selectKernel(filterFor, at_most); }
+
+Filter selectFilter() { return selectFilter(cpu::activeLevel()); }
 
 std::vector<std::pair<std::string, Filter>> availableFilters() {
-  // Slowest first: selectFilter() takes the last.
-  std::vector<std::pair<std::string, Filter>> filters = {{"generic", filterGeneric}};
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (cpu_features::hasAvx2()) filters.emplace_back("avx2", filterAvx2);
-  if (cpu_features::hasAvx2() && cpu_features::hasAvx512Bw()) filters.emplace_back("avx512", filterAvx512);
-#endif
+  std::vector<std::pair<std::string, Filter>> filters;
+  for (const cpu::CpuLevel level : cpu::kAllLevels)
+    if (const Filter filter = filterFor(level)) filters.emplace_back(cpu::levelName(level), filter);
   return filters;
 }
 

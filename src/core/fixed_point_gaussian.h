@@ -11,6 +11,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "cpu_features.h"
+
 namespace visual_gyro {
 namespace fixed_point_gaussian {
 
@@ -23,12 +25,17 @@ using Weights = std::array<uint16_t, kTaps / 2 + 1>;
 /// BORDER_REFLECT_101; `buffer` holds bufferSize(src.cols, src.rows) values.
 using Filter = void (*)(const cv::Mat& src, const Weights& weights, cv::Mat* dst, uint16_t* buffer);
 
-/// The fastest filter this CPU runs (AVX-512 BW, else AVX2 when it reports them, else the baseline
-/// instruction set).
+/// The filter of `level`, or nullptr for levels without one of their own or when this build or
+/// this CPU cannot run it: kPortable (the baseline instruction set), kAvx2 (the column pass by
+/// multiply-adds of 16 pixels), kAvx512Bw (32 pixels a step).
+Filter filterFor(cpu::CpuLevel level);
+
+/// The filter of the highest level up to `at_most` (cpu::selectKernel).
+Filter selectFilter(cpu::CpuLevel at_most);
+/// selectFilter(cpu::activeLevel()).
 Filter selectFilter();
 
-/// Every filter this CPU runs, by name ("generic", and "avx2" and "avx512" when the CPU reports
-/// them), slowest first, so tests can
+/// Every filter this CPU runs, by level name (cpu::levelName), lowest level first, so tests can
 /// check each one and not only the one selectFilter() picks.
 std::vector<std::pair<std::string, Filter>> availableFilters();
 

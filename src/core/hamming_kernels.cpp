@@ -494,64 +494,53 @@ GuidedGrid sortIntoGrid(const std::vector<cv::Point2f>& keypoints,
   return grid;
 }
 
-BruteForceKernel bruteForceKernelFor(InstructionSet isa) {
-  switch (isa) {
-    case InstructionSet::kPortable:
+BruteForceKernel bruteForceKernelFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
       return bruteForcePortable;
-    case InstructionSet::kPopcnt:
 #if defined(__x86_64__) && defined(__GNUC__)
-      if (cpu_features::hasPopcnt()) return bruteForcePopcnt;
+    case cpu::CpuLevel::kPopcnt:
+      return cpu::runs(level) ? bruteForcePopcnt : nullptr;
+    case cpu::CpuLevel::kAvx512Vbmi:
+      return cpu::runs(level) ? bruteForceAvx512 : nullptr;
 #endif
-      return nullptr;
-    case InstructionSet::kAvx2:
-      return nullptr;
-    case InstructionSet::kAvx512:
-#if defined(__x86_64__) && defined(__GNUC__)
-      if (cpu_features::hasAvx512Popcnt()) return bruteForceAvx512;
-#endif
-      return nullptr;
-  }
-  return nullptr;
-}
-
-GuidedKernel guidedKernelFor(InstructionSet isa) {
-  switch (isa) {
-    case InstructionSet::kPortable:
-      return guidedPortable;
-#if defined(__x86_64__) && defined(__GNUC__)
-    case InstructionSet::kPopcnt:
-      return cpu_features::hasPopcnt() ? guidedPopcnt : nullptr;
-    case InstructionSet::kAvx2:
-      return cpu_features::hasPopcnt() && cpu_features::hasAvx2() ? guidedAvx2 : nullptr;
-    case InstructionSet::kAvx512:
-      return cpu_features::hasAvx512Popcnt() ? guidedAvx512 : nullptr;
-#else
     default:
       return nullptr;
-#endif
   }
-  return nullptr;
+}
+
+GuidedKernel guidedKernelFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
+      return guidedPortable;
+#if defined(__x86_64__) && defined(__GNUC__)
+    case cpu::CpuLevel::kPopcnt:
+      return cpu::runs(level) ? guidedPopcnt : nullptr;
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? guidedAvx2 : nullptr;
+    case cpu::CpuLevel::kAvx512Vbmi:
+      return cpu::runs(level) ? guidedAvx512 : nullptr;
+#endif
+    default:
+      return nullptr;
+  }
 }
 
 // aarch64 has a vector popcount (cnt) in its baseline, which the compiler uses for
 // __builtin_popcountll without any flag: the portable kernels are the fast ones there.
+BruteForceKernel selectBruteForceKernel(cpu::CpuLevel at_most) {
+  return cpu::selectKernel(bruteForceKernelFor, at_most);
+}
+
+GuidedKernel selectGuidedKernel(cpu::CpuLevel at_most) { return cpu::selectKernel(guidedKernelFor, at_most); }
+
 BruteForceKernel selectBruteForceKernel() {
-  static const BruteForceKernel kernel = [] {
-    for (InstructionSet isa : {InstructionSet::kAvx512, InstructionSet::kPopcnt}) {
-      if (const BruteForceKernel k = bruteForceKernelFor(isa)) return k;
-    }
-    return static_cast<BruteForceKernel>(bruteForcePortable);
-  }();
+  static const BruteForceKernel kernel = selectBruteForceKernel(cpu::activeLevel());
   return kernel;
 }
 
 GuidedKernel selectGuidedKernel() {
-  static const GuidedKernel kernel = [] {
-    for (InstructionSet isa : {InstructionSet::kAvx512, InstructionSet::kAvx2, InstructionSet::kPopcnt}) {
-      if (const GuidedKernel k = guidedKernelFor(isa)) return k;
-    }
-    return static_cast<GuidedKernel>(guidedPortable);
-  }();
+  static const GuidedKernel kernel = selectGuidedKernel(cpu::activeLevel());
   return kernel;
 }
 

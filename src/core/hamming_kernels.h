@@ -1,13 +1,14 @@
 // Hamming-distance search kernels of the front end's matching (internal to the core library; not
 // installed): brute force (every previous descriptor against every current one) and guided (each
-// previous descriptor against the current ones inside its search window). One kernel per
-// instruction set, chosen at run time; all give the same result bit for bit.
+// previous descriptor against the current ones inside its search window). Kernels of several
+// instruction-set levels (cpu_features.h), chosen at run time; all give the same result bit for bit.
 #pragma once
 
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "cpu_features.h"
 #include "visual_gyro/feature_front_end.h"
 
 namespace visual_gyro {
@@ -74,22 +75,19 @@ using GuidedKernel = void (*)(const BriefDescriptor* previous, int n_previous,
                               const cv::Point2f* predicted, const float* radii,
                               const GuidedGrid& grid, const SearchTables& tables);
 
-/// The instruction sets a kernel can be built for.
-enum class InstructionSet {
-  kPortable,  ///< plain C++ (any CPU; on aarch64 its population count is the vector cnt)
-  kPopcnt,    ///< x86-64 with the popcnt instruction
-  kAvx2,      ///< popcnt plus AVX2: guided kernel's position test eight points at a time
-  /// AVX-512 with VPOPCNTDQ: both kernels' distances and bookkeeping eight candidates at a time
-  kAvx512,
-};
+/// The brute-force kernel of `level`, or nullptr for levels without one of their own or when this
+/// build or this CPU cannot run it: kPortable (plain C++; on aarch64 its population count is the
+/// vector cnt), kPopcnt, kAvx512Vbmi (distances and bookkeeping eight candidates at a time with
+/// VPOPCNTDQ).
+BruteForceKernel bruteForceKernelFor(cpu::CpuLevel level);
+/// The guided kernel of `level`, or nullptr likewise: kPortable, kPopcnt, kAvx2 (the position test
+/// eight points at a time), kAvx512Vbmi (as brute force's).
+GuidedKernel guidedKernelFor(cpu::CpuLevel level);
 
-/// The brute-force kernel for `isa`, or nullptr when this build or this CPU cannot run it or there
-/// is no brute-force kernel of its own for it.
-BruteForceKernel bruteForceKernelFor(InstructionSet isa);
-/// The guided kernel for `isa`, or nullptr when this build or this CPU cannot run it.
-GuidedKernel guidedKernelFor(InstructionSet isa);
-
-/// The fastest kernels this CPU runs (chosen once).
+/// The kernels of the highest level up to `at_most` (cpu::selectKernel).
+BruteForceKernel selectBruteForceKernel(cpu::CpuLevel at_most);
+GuidedKernel selectGuidedKernel(cpu::CpuLevel at_most);
+/// The kernels of the highest level this CPU runs (cpu::activeLevel(); chosen once).
 BruteForceKernel selectBruteForceKernel();
 GuidedKernel selectGuidedKernel();
 

@@ -6,8 +6,6 @@
 // sumEpipolarAvx2).
 #include "match_passes.h"
 
-#include "cpu_features.h"
-
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
@@ -427,13 +425,6 @@ const PassTable kAvx2 = {rotateAvx2,      countAvx2,       weightsAvx2,   huberA
 
 #endif
 
-const PassTable* detectAvx2() {
-#ifdef VG_MATCH_PASSES_AVX2
-  if (cpu_features::hasAvx2()) return &kAvx2;
-#endif
-  return nullptr;
-}
-
 }  // namespace
 
 double selectKth(double* a, size_t n, size_t k) {
@@ -469,15 +460,21 @@ double selectKth(double* a, size_t n, size_t k) {
   return a[k];
 }
 
-const PassTable& baselinePasses() { return kBaseline; }
-
-const PassTable* avx2Passes() {
-  static const PassTable* const table = detectAvx2();
-  return table;
+const PassTable* passTableFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
+      return &kBaseline;
+#ifdef VG_MATCH_PASSES_AVX2
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? &kAvx2 : nullptr;
+#endif
+    default:
+      return nullptr;
+  }
 }
 
 const PassTable& passes() {
-  static const PassTable& table = avx2Passes() != nullptr ? *avx2Passes() : baselinePasses();
+  static const PassTable& table = *cpu::selectKernel(passTableFor, cpu::activeLevel());
   return table;
 }
 

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cstddef>
 
+#include "cpu_features.h"
+
 namespace visual_gyro {
 namespace passes {
 
@@ -85,11 +87,11 @@ inline size_t gatheredPosition(size_t k, bool interleaved) {
 /// found by partitions without data-dependent branches.
 double selectKth(double* a, size_t n, size_t k);
 
-/// The baseline variant.
-const PassTable& baselinePasses();
-/// The AVX2 variant, or nullptr when the CPU (or the build) has none.
-const PassTable* avx2Passes();
-/// The variant this CPU uses.
+/// The variant of `level`: the baseline one (kPortable: compiled for the build's target, Eigen's
+/// SSE2 packets on x86-64), the AVX2 one (kAvx2; none in a build for a wider target, see
+/// match_passes.cpp); nullptr for other levels or when this CPU cannot run it.
+const PassTable* passTableFor(cpu::CpuLevel level);
+/// The variant of the highest level this CPU runs (cpu::activeLevel(); chosen once).
 const PassTable& passes();
 
 }  // namespace passes

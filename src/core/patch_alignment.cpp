@@ -263,87 +263,73 @@ __attribute__((target("avx2"))) PatchMoments momentsAvx2(const uint8_t* previous
 }  // namespace
 #endif
 
-MomentsKernel momentsKernelFor(KernelSet set) {
-  switch (set) {
-    case KernelSet::kPortable:
+MomentsKernel momentsKernelFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
       return momentsPortable;
-    case KernelSet::kSse2:
-      return nullptr;
-    case KernelSet::kAvx2:
 #if defined(__x86_64__) && defined(__GNUC__)
-      return cpu_features::hasAvx2() ? momentsAvx2 : nullptr;
-#else
-      return nullptr;
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? momentsAvx2 : nullptr;
 #endif
+    default:
+      return nullptr;
   }
-  return nullptr;
 }
 
-MomentsKernel momentsKernel() {
-  static const MomentsKernel kernel =
-      momentsKernelFor(KernelSet::kAvx2) != nullptr ? momentsKernelFor(KernelSet::kAvx2) : momentsPortable;
-  return kernel;
-}
-
-TemplateKernel templateKernelFor(KernelSet set) {
-  switch (set) {
-    case KernelSet::kPortable:
+TemplateKernel templateKernelFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
       return buildTemplatePortable;
-    case KernelSet::kSse2:
 #if defined(__SSE2__)
-      return buildTemplateSse2;
-#else
-      return nullptr;
+    case cpu::CpuLevel::kSse2:
+      return cpu::runs(level) ? buildTemplateSse2 : nullptr;
 #endif
-    case KernelSet::kAvx2:
 #if defined(__x86_64__) && defined(__GNUC__)
-      return cpu_features::hasAvx2() ? buildTemplateAvx2 : nullptr;
-#else
-      return nullptr;
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? buildTemplateAvx2 : nullptr;
 #endif
+    default:
+      return nullptr;
   }
-  return nullptr;
 }
 
-CorrelationKernel correlationKernelFor(KernelSet set) {
-  switch (set) {
-    case KernelSet::kPortable:
+CorrelationKernel correlationKernelFor(cpu::CpuLevel level) {
+  switch (level) {
+    case cpu::CpuLevel::kPortable:
       return correlatePortable;
-    case KernelSet::kSse2:
 #if defined(__SSE2__)
-      return correlateSse2;
-#else
-      return nullptr;
+    case cpu::CpuLevel::kSse2:
+      return cpu::runs(level) ? correlateSse2 : nullptr;
 #endif
-    case KernelSet::kAvx2:
 #if defined(__x86_64__) && defined(__GNUC__)
-      return cpu_features::hasAvx2() ? correlateAvx2 : nullptr;
-#else
-      return nullptr;
+    case cpu::CpuLevel::kAvx2:
+      return cpu::runs(level) ? correlateAvx2 : nullptr;
 #endif
+    default:
+      return nullptr;
   }
-  return nullptr;
 }
 
-namespace {
+TemplateKernel selectTemplateKernel(cpu::CpuLevel at_most) { return cpu::selectKernel(templateKernelFor, at_most); }
 
-// The first kernel set, fastest first, that this build and CPU run.
-KernelSet fastestKernelSet() {
-  for (KernelSet set : {KernelSet::kAvx2, KernelSet::kSse2}) {
-    if (templateKernelFor(set) != nullptr && correlationKernelFor(set) != nullptr) return set;
-  }
-  return KernelSet::kPortable;
+CorrelationKernel selectCorrelationKernel(cpu::CpuLevel at_most) {
+  return cpu::selectKernel(correlationKernelFor, at_most);
 }
 
-}  // namespace
+MomentsKernel selectMomentsKernel(cpu::CpuLevel at_most) { return cpu::selectKernel(momentsKernelFor, at_most); }
 
 TemplateKernel templateKernel() {
-  static const TemplateKernel kernel = templateKernelFor(fastestKernelSet());
+  static const TemplateKernel kernel = selectTemplateKernel(cpu::activeLevel());
   return kernel;
 }
 
 CorrelationKernel correlationKernel() {
-  static const CorrelationKernel kernel = correlationKernelFor(fastestKernelSet());
+  static const CorrelationKernel kernel = selectCorrelationKernel(cpu::activeLevel());
+  return kernel;
+}
+
+MomentsKernel momentsKernel() {
+  static const MomentsKernel kernel = selectMomentsKernel(cpu::activeLevel());
   return kernel;
 }
 

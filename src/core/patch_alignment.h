@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "cpu_features.h"
 #include "visual_gyro/feature_front_end.h"
 
 namespace visual_gyro {
@@ -52,20 +53,17 @@ using CorrelationKernel = PatchCorrelation (*)(const PatchTemplate& patch, const
 void buildTemplatePortable(const uint8_t* top_left, size_t step, PatchTemplate* patch);
 PatchCorrelation correlatePortable(const PatchTemplate& patch, const uint8_t* top_left, size_t step);
 
-/// The instruction sets the kernels are built for.
-enum class KernelSet {
-  kPortable,  ///< plain loops (any CPU)
-  kSse2,      ///< 16 pixels in two registers (every x86-64 CPU)
-  kAvx2,      ///< a row in one register (x86-64 CPUs that report AVX2; chosen at run time)
-};
+/// The kernels of `level`: the portable ones (kPortable), 16 pixels in two registers (kSse2, on
+/// x86-64), a row in one register (kAvx2); nullptr for other levels, or when this build or this
+/// CPU cannot run them. All give the portable kernels' integers exactly; the tests compare each
+/// level with them.
+TemplateKernel templateKernelFor(cpu::CpuLevel level);
+CorrelationKernel correlationKernelFor(cpu::CpuLevel level);
 
-/// The kernels for `set`, or nullptr when this build or this CPU cannot run them. All give the
-/// portable kernels' integers exactly; the tests compare each set with them.
-TemplateKernel templateKernelFor(KernelSet set);
-CorrelationKernel correlationKernelFor(KernelSet set);
-
-/// The fastest kernels this build and CPU run (AVX2, else SSE2 on x86-64, else the portable ones;
-/// chosen once).
+/// The kernels of the highest level up to `at_most` (cpu::selectKernel).
+TemplateKernel selectTemplateKernel(cpu::CpuLevel at_most);
+CorrelationKernel selectCorrelationKernel(cpu::CpuLevel at_most);
+/// The kernels of the highest level this build and CPU run (cpu::activeLevel(); chosen once).
 TemplateKernel templateKernel();
 CorrelationKernel correlationKernel();
 
@@ -91,11 +89,13 @@ using MomentsKernel = PatchMoments (*)(const uint8_t* previous_top_left, size_t 
 PatchMoments momentsPortable(const uint8_t* previous_top_left, size_t previous_step, const uint8_t* current_top_left,
                              size_t current_step, int ax, int ay);
 
-/// The moments kernel for `set`, or nullptr when this build or CPU has none (SSE2 has none: the
-/// portable kernel serves there).
-MomentsKernel momentsKernelFor(KernelSet set);
+/// The moments kernel of `level` (kPortable, kAvx2), or nullptr for other levels (SSE2 has none:
+/// the portable kernel serves there) or when this build or CPU cannot run it.
+MomentsKernel momentsKernelFor(cpu::CpuLevel level);
 
-/// The fastest moments kernel this build and CPU run (chosen once).
+/// The moments kernel of the highest level up to `at_most` (cpu::selectKernel).
+MomentsKernel selectMomentsKernel(cpu::CpuLevel at_most);
+/// The moments kernel of the highest level this build and CPU run (cpu::activeLevel(); chosen once).
 MomentsKernel momentsKernel();
 
 /// Zero-mean normalised cross-correlation of the two patches `moments` summed (-1..1); -1 when

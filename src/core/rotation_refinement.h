@@ -131,7 +131,7 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 /// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
 /// matches as rotation + translation, minimises the angular residuals |b_prev x R b_cur| (robust
 /// Kabsch); otherwise minimises the epipolar residuals t . (b_prev x R b_cur) over R and the unit
-/// t jointly (Levenberg-Marquardt, Huber weights) -- Kneip & Lynen's eigenvalue cost
+/// t jointly (Levenberg-Marquardt, Tukey weights) -- Kneip & Lynen's eigenvalue cost
 /// lambda_min(sum n n^T), which is this cost minimised over t -- with each residual normalised to
 /// an angle (Sampson). Covariance = sigma^2 (J^T W J)^-1 for the rotation, t marginalised.
 /// `warm`: the start is already a refined rotation, so the wide first gates are skipped.

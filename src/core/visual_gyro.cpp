@@ -45,18 +45,38 @@ std::string formatNumber(double v) {
   return out.str();
 }
 
+// The few settings a user sets, those only method `paper` reads, and those the node reads once at
+// start; every other setting is an expert one that changes live. A name that is no setting throws
+// when the table is built, so these lists cannot drift from it.
+const char* const kUserSettings[] = {"method", "backend", "max_features", "hypotheses"};
+const char* const kPaperOnlySettings[] = {"centroid_subtraction", "yaw_bin_deg", "yaw_window_deg"};
+const char* const kStartOnlySettings[] = {"backend"};
+
+template <class Apply, size_t N>
+void tag(std::vector<SettingField<VisualGyroSettings>>* fields, const char* const (&names)[N], Apply apply) {
+  for (const char* name : names) {
+    auto it = std::find_if(fields->begin(), fields->end(), [name](const auto& f) { return f.name == name; });
+    if (it == fields->end()) throw std::logic_error(std::string("no setting '") + name + "' to tag");
+    apply(&*it);
+  }
+}
+
 }  // namespace
 
 const std::vector<SettingField<VisualGyroSettings>>& visualGyroSettingFields() {
   using S = VisualGyroSettings;
-  static const std::vector<SettingField<S>> fields = [] {
-    std::vector<SettingField<S>> all;
+  using Field = SettingField<S>;
+  static const std::vector<Field> fields = [] {
+    std::vector<Field> all;
     for (const auto& f : frontEndSettingFields()) all.push_back(nestedField(f, &S::front_end));
     for (const auto& f : estimatorSettingFields()) all.push_back(nestedField(f, &S::estimator));
     all.push_back(doubleField<S>("min_dt", &S::min_dt, 0.0, 1.0, "s",
                                  "a time step below this is skipped (the frame is not used)"));
     all.push_back(doubleField<S>("max_rate_dps", &S::max_rate_dps, 1.0, 1e6, "deg/s",
                                  "an estimated angular rate above this is invalid"));
+    tag(&all, kUserSettings, [](Field* f) { f->tier = SettingTier::kUser; });
+    tag(&all, kPaperOnlySettings, [](Field* f) { f->tier = SettingTier::kPaperOnly; });
+    tag(&all, kStartOnlySettings, [](Field* f) { f->live = false; });
     return all;
   }();
   return fields;
@@ -69,35 +89,11 @@ const SettingField<VisualGyroSettings>* findSetting(const std::string& name) {
 }
 
 std::string applySetting(VisualGyroSettings* settings, const std::string& name, const std::string& value) {
-  const SettingField<VisualGyroSettings>* field = findSetting(name);
-  if (field == nullptr) return "unknown setting '" + name + "'";
-  VisualGyroSettings changed = *settings;
-  std::string why = field->parse(&changed, value);
-  if (!why.empty()) return name + ": " + why;
-  why = field->checkRange(changed);
-  if (!why.empty()) return why;
-  *settings = changed;
-  return "";
+  return applyField(settings, visualGyroSettingFields(), name, value);
 }
 
 std::string settingsMarkdownTable() {
-  using Field = SettingField<VisualGyroSettings>;
-  const VisualGyroSettings defaults;
-  std::ostringstream out;
-  out << "| setting | default | accepted | meaning |\n| --- | --- | --- | --- |\n";
-  for (const Field& f : visualGyroSettingFields()) {
-    std::string accepted;
-    if (f.type == SettingType::kBool) {
-      accepted = "true, false";
-    } else if (f.type == SettingType::kString) {
-      for (const auto& c : f.choices) accepted += (accepted.empty() ? "" : ", ") + c;
-    } else {
-      accepted = Field::formatNumber(f.min) + " … " + Field::formatNumber(f.max);
-    }
-    if (!f.unit.empty()) accepted += " " + f.unit;
-    out << "| `" << f.name << "` | " << f.text(defaults) << " | " << accepted << " | " << f.doc << " |\n";
-  }
-  return out.str();
+  return tieredSettingsMarkdown(settingRows(visualGyroSettingFields(), VisualGyroSettings()));
 }
 
 std::string validateVisualGyroSettings(const VisualGyroSettings& settings) {

@@ -82,7 +82,7 @@ struct RunDescription {
 
 /// The readable summary of one method.
 std::string summaryText(const RunDescription& run, const MethodSummary& summary);
-/// The one-line JSON object of one method (the keys the README documents).
+/// The one-line JSON object of one method (the keys doc/evaluation.md documents).
 std::string summaryJson(const RunDescription& run, const MethodSummary& summary);
 /// Writes every method's per-frame rows as CSV; throws DataError when it cannot.
 void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& all);

@@ -1,40 +1,94 @@
 #include "node_parameters.h"
 
 #include <algorithm>
-#include <cmath>
+
+#include <ros/console.h>
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include "visual_gyro/visual_gyro.h"
 
 namespace visual_gyro {
 
+namespace {
+
+/// A parameter's value as the text the settings tables parse; "" or why it has no such text.
+std::string parameterText(XmlRpc::XmlRpcValue& value, std::string* text) {
+  switch (value.getType()) {
+    case XmlRpc::XmlRpcValue::TypeBoolean: *text = static_cast<bool>(value) ? "true" : "false"; return "";
+    case XmlRpc::XmlRpcValue::TypeInt: *text = std::to_string(static_cast<int>(value)); return "";
+    case XmlRpc::XmlRpcValue::TypeDouble: *text = SettingSpec::formatNumber(static_cast<double>(value)); return "";
+    case XmlRpc::XmlRpcValue::TypeString: *text = static_cast<std::string>(value); return "";
+    case XmlRpc::XmlRpcValue::TypeArray: {
+      std::vector<std::string> items;
+      for (int i = 0; i < value.size(); ++i) {
+        std::string item;
+        const XmlRpc::XmlRpcValue::Type type = value[i].getType();
+        if (type != XmlRpc::XmlRpcValue::TypeInt && type != XmlRpc::XmlRpcValue::TypeDouble) {
+          *text = value.toXml();
+          return "a list of numbers may hold numbers only";
+        }
+        parameterText(value[i], &item);
+        items.push_back(item);
+      }
+      *text = "[" + SettingSpec::joined(items, ", ") + "]";
+      return "";
+    }
+    default: *text = value.toXml(); return "not a number, text, boolean or list";
+  }
+}
+
+/// `text` (accepted by the setting) as a parameter of the setting's type.
+XmlRpc::XmlRpcValue typedValue(SettingType type, const std::string& text) {
+  switch (type) {
+    case SettingType::kBool: return XmlRpc::XmlRpcValue(text == "true" || text == "1" || text == "True" ||
+                                                        text == "on" || text == "yes");
+    case SettingType::kInt: return XmlRpc::XmlRpcValue(static_cast<int>(std::stoll(text)));
+    case SettingType::kDouble: return XmlRpc::XmlRpcValue(std::stod(text));
+    case SettingType::kString: return XmlRpc::XmlRpcValue(text);
+    case SettingType::kDoubleList: {
+      std::vector<double> values;
+      setting_detail::parseRealList(text, &values);
+      XmlRpc::XmlRpcValue list;
+      list.setSize(static_cast<int>(values.size()));
+      for (size_t i = 0; i < values.size(); ++i) list[static_cast<int>(i)] = values[i];
+      return list;
+    }
+  }
+  return XmlRpc::XmlRpcValue();
+}
+
+}  // namespace
+
 NodeParameters NodeParameters::read(const ros::NodeHandle& pnh) {
   NodeParameters p;
-  pnh.param("use_camera_info", p.use_camera_info, p.use_camera_info);
-  pnh.param("image_transport", p.transport, p.transport);
-  pnh.param("queue_size", p.queue_size, p.queue_size);
-  p.queue_size = std::max(p.queue_size, 1);
-  pnh.param("backend", p.backend, p.backend);
-  pnh.param("output_frame", p.output_frame, p.output_frame);
-  pnh.param("world_frame", p.world_frame, p.world_frame);
-  pnh.param("publish_tf", p.publish_tf, p.publish_tf);
-  pnh.param("tf_child_frame", p.tf_child_frame, p.tf_child_frame);
+  // The pipeline's settings reach the node through dynamic_reconfigure; only the backend is kept.
+  VisualGyroSettings pipeline;
+  std::vector<std::string> refused;
+  for (const AnySetting& setting : everySetting()) {
+    const std::string& name = setting.spec->name;
+    XmlRpc::XmlRpcValue raw;
+    if (!pnh.getParam(name, raw)) continue;  // absent: the default
+    std::string text;
+    std::string why = parameterText(raw, &text);
+    if (!why.empty()) {
+      why = name + ": " + why + ", got " + text;
+    } else {
+      why = setting.node ? applyNodeSetting(&p, name, text) : applySetting(&pipeline, name, text);
+    }
+    if (why.empty()) {
+      const XmlRpc::XmlRpcValue typed = typedValue(setting.spec->type, text);
+      if (raw.getType() != typed.getType() || raw.getType() == XmlRpc::XmlRpcValue::TypeArray)
+        pnh.setParam(name, typed);
+      continue;
+    }
+    ROS_ERROR("visual_gyro: start-up parameter ~%s refused (%s); using its default %s", name.c_str(), why.c_str(),
+              setting.default_text.empty() ? "\"\"" : setting.default_text.c_str());
+    refused.push_back("start-up parameter " + why);
+    pnh.setParam(name, typedValue(setting.spec->type, setting.default_text));
+  }
+  p.backend = findSetting("backend")->text(pipeline);
   p.plot.frame_id = p.world_frame;
-  pnh.param("plot_window", p.plot.window, p.plot.window);
-  pnh.param("plot_width", p.plot.width, p.plot.width);
-  pnh.param("plot_height", p.plot.height, p.plot.height);
-  pnh.param("plot_points", p.plot.max_points, p.plot.max_points);
-  pnh.param("ground_truth_tolerance", p.plot.truth_tolerance, p.plot.truth_tolerance);
-  pnh.param("fx", p.fx, p.fx);
-  pnh.param("fy", p.fy, p.fy);
-  pnh.param("cx", p.cx, p.cx);
-  pnh.param("cy", p.cy, p.cy);
-  pnh.param("distortion_model", p.distortion_model, p.distortion_model);
-  pnh.param("D", p.distortion, p.distortion);
-  pnh.param("mono16_bit_depth", p.mono16_bit_depth, p.mono16_bit_depth);
-  if (p.mono16_bit_depth != 0 && (p.mono16_bit_depth < 8 || p.mono16_bit_depth > 16))
-    p.problem = "~mono16_bit_depth must be 0 (per frame) or 8..16, got " + std::to_string(p.mono16_bit_depth);
-  pnh.param("time_offset", p.time_offset, p.time_offset);
-  if (!(std::abs(p.time_offset) <= kMaxTimeOffset))
-    p.problem = "~time_offset must lie in [-" + std::to_string(kMaxTimeOffset) + ", " + std::to_string(kMaxTimeOffset) +
-                "] s, got " + std::to_string(p.time_offset);
+  p.refused = SettingSpec::joined(refused, "; ");
   return p;
 }
 
@@ -52,7 +106,7 @@ bool NodeParameters::cameraFor(int width, int height, CameraModel* camera, std::
     *why = "~use_camera_info is false but ~fx is not set (give ~fx, ~fy, ~cx, ~cy)";
     return false;
   }
-  std::vector<double> d = distortion;
+  std::vector<double> d = D;
   if (std::all_of(d.begin(), d.end(), [](double v) { return v == 0.0; })) {
     d.clear();
     model = DistortionModel::kNone;

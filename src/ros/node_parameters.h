@@ -1,44 +1,33 @@
-// The visual_gyro nodelet's node-only private parameters, read once at start: input, output
-// frames, tf, the yaw plot and the intrinsics used when there is no camera_info. The pipeline's
-// settings (method, thresholds, plausibility) are live dynamic_reconfigure settings instead.
+// The visual_gyro nodelet's start-up parameters: every setting of both tables (node_settings.h)
+// read from the private parameters through the one gate, and the node's own settings kept for
+// the run. The pipeline's and the node's live settings then reach the node through
+// dynamic_reconfigure (reconfigure_settings.h), which reads the values left on the parameter
+// server here.
 #pragma once
 
 #include <string>
-#include <vector>
 
 #include <ros/node_handle.h>
 
+#include "node_settings.h"
 #include "visual_gyro/camera_model.h"
-#include "yaw_plot.h"
 
 namespace visual_gyro {
 
-/// Largest |~time_offset| accepted [s]: camera-IMU offsets are tens of milliseconds.
-constexpr double kMaxTimeOffset = 1.0;
+/// The node's own settings as read at start, with the ~backend request. The live ones among them
+/// (max_gap, ...) are only their start-up values: the dynamic_reconfigure configuration holds
+/// those in force.
+struct NodeParameters : NodeSettings {
+  std::string backend;  ///< ~backend request: the pipeline setting `backend`, read once at start
+  /// The start-up parameters refused, each naming the setting and why, joined with "; " ("" when
+  /// none): each was replaced by its default.
+  std::string refused;
 
-struct NodeParameters {
-  bool use_camera_info = true;
-  std::string transport = "raw";  ///< ~image_transport
-  int queue_size = 1;             ///< ~queue_size: images waiting while one is processed (>= 1)
-  std::string backend = "auto";   ///< ~backend request
-  std::string output_frame;       ///< "" = the camera's optical frame
-  std::string world_frame = "visual_gyro_world";
-  bool publish_tf = false;
-  std::string tf_child_frame = "visual_gyro_camera";
-  YawPlotSettings plot;           ///< ~plot_*, ~ground_truth_tolerance (frame: world_frame)
-  // Intrinsics when use_camera_info is false (fy, cx, cy < 0: fx and the image centre).
-  double fx = 0.0, fy = -1.0, cx = -1.0, cy = -1.0;
-  std::string distortion_model = "none";
-  std::vector<double> distortion;  ///< ~D
-  int mono16_bit_depth = 0;        ///< mono16 scaling: 0 = per frame, else the camera's bit depth
-  /// ~time_offset [s], in [-kMaxTimeOffset, kMaxTimeOffset]: added to every output stamp (~imu,
-  /// ~rotation, ~orientation, tf) to put it on the IMU's clock, t_imu = t_camera + time_offset
-  /// (what calibrate_imu measures). The yaw plot stays on the camera's clock.
-  double time_offset = 0.0;
-  /// Why a parameter is unusable ("" when all are): the node then publishes nothing.
-  std::string problem;
-
-  /// Reads the parameters from the private node handle (defaults as above).
+  /// Reads every setting of both tables present among the private parameters of `pnh`. A value the
+  /// gate refuses (checkSettingValue: not of its type, out of range, NaN, infinite) is logged as an
+  /// error naming it, listed in `refused`, and replaced by its default, also on the parameter
+  /// server, so that dynamic_reconfigure starts from values in force; an accepted one is written
+  /// back with its setting's type (a yaml `1` for a double reads as 1.0).
   static NodeParameters read(const ros::NodeHandle& pnh);
 
   /// The camera model from ~fx ... for an image of this size; false (and `why`) when unusable.

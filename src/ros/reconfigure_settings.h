@@ -1,5 +1,6 @@
-// The nodelet's live settings (dynamic_reconfigure's VisualGyroConfig) as name/value pairs, the
-// pipeline settings made from them, and the text naming what a change changes.
+// The nodelet's live settings (dynamic_reconfigure's VisualGyroConfig, generated from
+// cfg/VisualGyro.cfg, itself generated from the settings tables): the gate a change goes through,
+// the pipeline settings made from them, and the ranges shown to GUIs.
 #pragma once
 
 #include <string>
@@ -18,14 +19,22 @@ using Config = visual_gyro::VisualGyroConfig;
 /// with enough digits to read back the same value, bools as "true"/"false".
 std::vector<std::pair<std::string, std::string>> entries(const Config& config);
 
-/// The parameters that differ, as "name old -> new" joined with ", " ("" when none).
-std::string describeChange(const Config& before, const Config& after);
+/// The gate of a live change: every parameter of *config that differs from `in_force` goes
+/// through checkSettingValue (node_settings.h); a refused one gets its value in `in_force` back,
+/// so that *config holds the values in force. Returns the refusals, each "name old -> new: why"
+/// (why names the setting), joined with "; "; "" when none.
+std::string refuseInvalid(const Config& in_force, Config* config);
 
 /// The pipeline settings of `config`: every entry the settings table knows (findSetting) applied by
 /// name through applySetting, with the node's ~backend request; the entries it does not know are
 /// the node's own (max_gap, stamp_at_midpoint, ...). "" or why the settings are unusable: the
 /// first entry that does not parse or is out of range, else validateVisualGyroSettings' answer.
 std::string pipelineSettings(const Config& config, const std::string& backend, VisualGyroSettings* settings);
+
+/// The ranges of the numeric live settings as configurations, for GUIs (the server's published
+/// description): the cfg gives none, so that the server clamps nothing and the gate sees every
+/// value. Settings without a range keep the generated limits.
+void ranges(Config* min, Config* max);
 
 }  // namespace reconfigure_settings
 }  // namespace visual_gyro

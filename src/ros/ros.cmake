@@ -22,7 +22,7 @@ add_library(visual_gyro_ros_common
   src/ros/node_parameters.cpp
   src/ros/node_diagnostics.cpp)
 target_include_directories(visual_gyro_ros_common PUBLIC ${VISUAL_GYRO_ROS_INCLUDES})
-target_link_libraries(visual_gyro_ros_common PUBLIC visual_gyro_core ${catkin_LIBRARIES})
+target_link_libraries(visual_gyro_ros_common PUBLIC visual_gyro_core visual_gyro_settings ${catkin_LIBRARIES})
 add_dependencies(visual_gyro_ros_common ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
 target_compile_options(visual_gyro_ros_common PRIVATE -Wall -Wextra)
 

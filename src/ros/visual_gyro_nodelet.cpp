@@ -41,13 +41,12 @@ VisualGyroNodelet::~VisualGyroNodelet() {
 void VisualGyroNodelet::onInit() {
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
-  params_ = NodeParameters::read(pnh);
-  if (!params_.problem.empty()) NODELET_ERROR("visual_gyro: %s; no output until it is fixed", params_.problem.c_str());
+  params_ = NodeParameters::read(pnh);  // refused values are logged there and replaced by their defaults
   health_.start(ros::WallTime::now().toSec());
   outputs_.reset(new OutputPublisher(params_, &health_));
 
   it_.reset(new image_transport::ImageTransport(nh));
-  if (params_.transport == "compressed") {
+  if (params_.image_transport == "compressed") {
     const std::vector<std::string> loadable = it_->getLoadableTransports();
     decode_compressed_ = std::find(loadable.begin(), loadable.end(), "compressed") == loadable.end();
     NODELET_INFO("visual_gyro: compressed input through %s",
@@ -61,6 +60,10 @@ void VisualGyroNodelet::onInit() {
   // server reads the initial values from the private parameters (config/visual_gyro.yaml) and
   // calls reconfigureCb once before returning.
   reconfigure_server_.reset(new dynamic_reconfigure::Server<Config>(reconfigure_mutex_, getMTPrivateNodeHandle()));
+  Config min, max;
+  reconfigure_settings::ranges(&min, &max);
+  reconfigure_server_->setConfigMin(min);
+  reconfigure_server_->setConfigMax(max);
   reconfigure_server_->setCallback(
       boost::bind(&VisualGyroNodelet::reconfigureCb, this, boost::placeholders::_1, boost::placeholders::_2));
 
@@ -140,21 +143,26 @@ void VisualGyroNodelet::connectCb() {
 }
 
 void VisualGyroNodelet::reconfigureCb(Config& config, uint32_t /*level*/) {
+  std::lock_guard<std::mutex> lock(config_mutex_);
+  // Before the first accepted configuration the values in force are the defaults.
+  const std::string refused =
+      reconfigure_settings::refuseInvalid(have_config_ ? config_ : Config::__getDefault__(), &config);
+  if (!refused.empty())
+    NODELET_ERROR("visual_gyro: rejected settings change %s; keeping the previous value", refused.c_str());
   VisualGyroSettings settings;
   const std::string problem = reconfigure_settings::pipelineSettings(config, params_.backend, &settings);
-  std::lock_guard<std::mutex> lock(config_mutex_);
   if (problem.empty()) {
     config_ = config;
     settings_ = settings;
     have_config_ = true;
     ++config_version_;
     health_.setSettingsProblem("");
-    health_.setRejectedChange("");
+    // Refused start-up parameters stay listed: they cannot change while running.
+    health_.setRejectedChange(refused.empty() || params_.refused.empty() ? refused + params_.refused
+                                                                         : refused + "; " + params_.refused);
   } else if (have_config_) {
-    const std::string change = reconfigure_settings::describeChange(config_, config);
-    const std::string why = (change.empty() ? std::string("settings") : change) + ": " + problem;
-    NODELET_ERROR("visual_gyro: rejected settings change %s; keeping the previous settings", why.c_str());
-    health_.setRejectedChange(why);
+    NODELET_ERROR("visual_gyro: rejected settings (%s); keeping the previous settings", problem.c_str());
+    health_.setRejectedChange(problem);
     config = config_;  // the server publishes and stores the settings still in use
   } else {
     // No previous settings to keep: nothing is published until valid ones arrive.
@@ -236,7 +244,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   uint64_t config_version = 0;
   {
     std::lock_guard<std::mutex> config_lock(config_mutex_);
-    if (!have_config_ || !params_.problem.empty()) {
+    if (!have_config_) {
       health_.skipped("settings");
       return;
     }
@@ -387,7 +395,6 @@ void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
   }
   const std::pair<uint64_t, uint64_t> probed = probe_->take();
   health_.probedInput(probed.first, probed.second);
-  if (!params_.problem.empty()) health_.setSettingsProblem(params_.problem);
   health_.fill(status, ros::WallTime::now().toSec(), context);
 }
 

@@ -80,9 +80,10 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   /// Decodes a compressed image; null (frame counted as skipped) when it cannot be decoded.
   sensor_msgs::ImageConstPtr decodeCompressed(const sensor_msgs::CompressedImage& image);
   void groundTruthCb(const geometry_msgs::PoseStampedConstPtr& pose);
-  /// Accepts a live change, or rejects it: one error naming the changed settings and why, the
-  /// previous configuration written back into `config` (the server then publishes and stores
-  /// it), and a WARN on /diagnostics until a later change is accepted.
+  /// Accepts a live change through the gate (reconfigure_settings::refuseInvalid): each refused
+  /// value is put back to the one in force in `config` (the server then publishes and stores it),
+  /// with one error naming the settings and why, and a WARN on /diagnostics until a later change
+  /// is accepted.
   void reconfigureCb(Config& config, uint32_t level);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& status);
 

@@ -12,19 +12,9 @@
 #include <Eigen/Geometry>
 #include <visualization_msgs/MarkerArray.h>
 
-namespace visual_gyro {
+#include "yaw_plot_settings.h"
 
-/// Geometry and content of the yaw plot.
-struct YawPlotSettings {
-  std::string frame_id = "visual_gyro_world";  ///< frame of every marker
-  double window = 20.0;        ///< [s] time span shown; older points scroll out to the left
-  double left = 2.0;           ///< [m] x of the time axis' start (the orientation axes sit at the origin)
-  double width = 8.0;          ///< [m] length of the time axis (rviz x)
-  double height = 3.0;         ///< [m] height of each panel (rviz y)
-  double text_size = 0.22;     ///< [m] height of the labels
-  double truth_tolerance = 0.005;  ///< [s] a ground-truth pose this close to the first image is its reference
-  int max_points = 3000;       ///< points kept per series (also bounded by the window)
-};
+namespace visual_gyro {
 
 /// One numeric axis: range and tick step, in the series' unit.
 struct PlotAxis {

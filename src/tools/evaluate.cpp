@@ -64,7 +64,7 @@ const char* const kUsage =
     "  --quiet                summary and JSON only (no progress)\n"
     "  --list-methods         print the methods this build has, comma-separated, and exit\n"
     "  --list-backends        print the backends that work here (cpu[,cuda]; why not cuda on stderr)\n"
-    "  --settings-table       print every setting (default, accepted values, meaning) as Markdown\n";
+    "  --settings-table       print every setting as Markdown, one table per tier (user, expert, paper-only)\n";
 
 struct Options {
   std::string folder;

@@ -8,6 +8,8 @@
 // already found every pair orthogonal, a further sweep finds the same and changes nothing.
 #include "triple_batch.h"
 
+#include "../core/cpu_features.h"  // header-only: the CPU level every kernel is chosen by
+
 // Without FMA enabled for the whole file: with it, the compiler may fuse the scalar solver's
 // multiplications and additions, which the lanes do not reproduce; the scalar solver then runs.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__FMA__)
@@ -314,20 +316,14 @@ __attribute__((target("avx2"))) int drawBatchesAvx2(uint64_t seed, uint32_t firs
 }
 
 bool drawBatchAvailable() {
-  static const bool available = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
+  static const bool available = cpu::runs(cpu::CpuLevel::kAvx2);
   return available;
 }
 
 }  // namespace
 
 bool tripleBatchAvailable() {
-  static const bool available = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx") != 0;
-  }();
+  static const bool available = cpu::runs(cpu::CpuLevel::kAvx);
   return available;
 }
 

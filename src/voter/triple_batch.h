@@ -13,12 +13,12 @@ namespace hyp {
 /// Triples the batched solver works on at once (SIMD lanes).
 constexpr int kTripleBatch = 8;
 
-/// True when this CPU solves triples in SIMD lanes (x86-64 with AVX); without them solveTriples
-/// solves one triple at a time.
+/// True when this CPU solves triples in SIMD lanes (x86-64 at CPU level kAvx or above, see
+/// src/core/cpu_features.h); without them solveTriples solves one triple at a time.
 bool tripleBatchAvailable();
 
 /// drawTriple for hypotheses first .. first + count - 1 (idx[k]: hypothesis first + k), eight at a
-/// time in SIMD lanes where the CPU can (AVX2); the same indices as drawTriple.
+/// time in SIMD lanes where the CPU can (level kAvx2); the same indices as drawTriple.
 void drawTriples(uint64_t seed, uint32_t first, int count, uint32_t n, uint32_t (*idx)[3]);
 
 /// solveTripleRotation for `count` triples, in SIMD lanes where the CPU can: triple k is made of

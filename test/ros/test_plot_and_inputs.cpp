@@ -178,9 +178,9 @@ std::map<std::string, std::string> yamlValues() {
   return values;
 }
 
-// The plot's defaults live in YawPlotSettings; the yaml the launch files load and the README's
-// parameter table must say the same.
-TEST(YawPlot, DefaultsAgreeWithYamlAndReadme) {
+// The plot's defaults live in YawPlotSettings; the yaml the launch files load and the node-parameter
+// table of doc/ros.md must say the same.
+TEST(YawPlot, DefaultsAgreeWithYamlAndRosDoc) {
   const auto yaml = yamlValues();
   ASSERT_FALSE(yaml.empty()) << "cannot read config/visual_gyro.yaml";
   const YawPlotSettings defaults;
@@ -190,13 +190,19 @@ TEST(YawPlot, DefaultsAgreeWithYamlAndReadme) {
   EXPECT_EQ(std::stoi(yaml.at("plot_points")), defaults.max_points);
   EXPECT_DOUBLE_EQ(std::stod(yaml.at("ground_truth_tolerance")), defaults.truth_tolerance);
   EXPECT_EQ(yaml.at("world_frame"), defaults.frame_id);
-  std::ifstream readme(std::string(VISUAL_GYRO_SOURCE_DIR) + "/README.md");
+  std::ifstream doc(std::string(VISUAL_GYRO_SOURCE_DIR) + "/doc/ros.md");
+  ASSERT_TRUE(doc.good()) << "cannot read doc/ros.md";
   std::stringstream text;
-  text << readme.rdbuf();
-  std::ostringstream row;
-  row << "| `plot_window`, `plot_width`, `plot_height`, `plot_points` | " << defaults.window << " s, "
-      << defaults.width << " m, " << defaults.height << " m, " << defaults.max_points << " |";
-  EXPECT_NE(text.str().find(row.str()), std::string::npos) << "README has no row " << row.str();
+  text << doc.rdbuf();
+  const std::pair<const char*, double> rows[] = {{"plot_window", defaults.window},
+                                                 {"plot_width", defaults.width},
+                                                 {"plot_height", defaults.height},
+                                                 {"plot_points", static_cast<double>(defaults.max_points)}};
+  for (const auto& [name, value] : rows) {
+    std::ostringstream row;
+    row << "| `" << name << "` | " << value << " |";
+    EXPECT_NE(text.str().find(row.str()), std::string::npos) << "doc/ros.md has no row " << row.str();
+  }
 }
 
 std::string fileText(const std::string& relative) {
@@ -206,17 +212,19 @@ std::string fileText(const std::string& relative) {
   return text.str();
 }
 
-// The stamp default (chosen by measurement, README "Output stamps") is written in three places.
-TEST(OutputStamps, MidpointDefaultAgreesInCfgYamlAndReadme) {
+// The stamp default (chosen by measurement, doc/ros.md "Output stamps") is written in three places.
+TEST(OutputStamps, MidpointDefaultAgreesInCfgYamlAndRosDoc) {
   EXPECT_EQ(yamlValues().at("stamp_at_midpoint"), "true");
   const std::string cfg = fileText("cfg/VisualGyro.cfg");
   const size_t at = cfg.find("gen.add(\"stamp_at_midpoint\"");
   ASSERT_NE(at, std::string::npos);
   const std::string line = cfg.substr(at, cfg.find('\n', at) - at);
   EXPECT_NE(line.find(", True)"), std::string::npos) << line;
-  EXPECT_NE(fileText("README.md").find("| `stamp_at_midpoint` | true |"), std::string::npos);
+  const std::string doc = fileText("doc/ros.md");
+  ASSERT_FALSE(doc.empty()) << "cannot read doc/ros.md";
+  EXPECT_NE(doc.find("| `stamp_at_midpoint` | true |"), std::string::npos);
   EXPECT_EQ(yamlValues().at("queue_size"), "1");
-  EXPECT_NE(fileText("README.md").find("| `queue_size` | 1 |"), std::string::npos);
+  EXPECT_NE(doc.find("| `queue_size` | 1 |"), std::string::npos);
 }
 
 TEST(CompressedInput, JpegAndPngRoundTrip) {

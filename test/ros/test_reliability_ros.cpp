@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -105,6 +106,13 @@ Parameter parameter(const std::string& name, const Value& value) {
 bool reconfigure(const std::string& name, double value, dynamic_reconfigure::Config* answer = nullptr) {
   dynamic_reconfigure::Config change;
   change.doubles.push_back(parameter<dynamic_reconfigure::DoubleParameter>(name, value));
+  return reconfigure(change, answer);
+}
+
+/// Sets one boolean of the node's dynamic_reconfigure settings.
+bool reconfigure(const std::string& name, bool value, dynamic_reconfigure::Config* answer = nullptr) {
+  dynamic_reconfigure::Config change;
+  change.bools.push_back(parameter<dynamic_reconfigure::BoolParameter>(name, value));
   return reconfigure(change, answer);
 }
 
@@ -286,9 +294,9 @@ TEST(ReliabilityRos, MaxRateIsLiveAndNamesTheReason) {
 TEST(ReliabilityRos, TooFineBinsAreWidenedLive) {
   Harness& h = *g_harness;
   h.clear();
-  // Below the cfg's range: the server clamps it to 0.01 deg, which the estimator widens to fit its
-  // window, so the change is accepted and the frames are still estimated.
-  ASSERT_TRUE(reconfigure("rotation_bin_deg", 1e-12));
+  // The least bin the settings accept, far too fine for the window: the estimator widens it to fit
+  // its window, so the change is accepted and the frames are still estimated.
+  ASSERT_TRUE(reconfigure("rotation_bin_deg", 0.01));
   const double t0 = 900.0;
   for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
   h.settle();
@@ -309,8 +317,8 @@ TEST(ReliabilityRos, RejectedLiveChangeKeepsThePreviousSettingsAndWarns) {
   double before_window = 0.0;
   ASSERT_TRUE(ros::param::get(std::string(kNs) + "/method", before_method));
   ASSERT_TRUE(ros::param::get(std::string(kNs) + "/rotation_window_deg", before_window));
-  // The server clamps numbers to the cfg's ranges (the settings table's), but passes any text: a
-  // method the settings table does not know reaches the node, whose validation refuses it.
+  // The server clamps nothing (the cfg gives no ranges): a method the settings table does not know
+  // reaches the node, whose gate refuses it.
   dynamic_reconfigure::Config answer;
   ASSERT_TRUE(reconfigure("method", std::string("nonsense"), &answer));
   // The server answers, publishes and stores the settings still in use.
@@ -342,6 +350,75 @@ TEST(ReliabilityRos, RejectedLiveChangeKeepsThePreviousSettingsAndWarns) {
   ASSERT_TRUE(ros::param::get(std::string(kNs) + "/rotation_window_deg", stored));
   EXPECT_EQ(stored, 8.0);
   ASSERT_TRUE(reconfigure("rotation_window_deg", before_window));
+}
+
+// The live gate: NaN, infinities and values out of range reach the node (the server clamps
+// nothing), which refuses each, names it and answers with the value in force.
+TEST(ReliabilityRos, NanInvalidVarianceIsRefusedAndTheImuCovarianceStaysFinite) {
+  Harness& h = *g_harness;
+  ASSERT_TRUE(reconfigure("publish_invalid", true));
+  ASSERT_TRUE(reconfigure("max_rate_dps", 5.0));  // the views turn at 10 deg/s: every estimate is invalid
+  h.clear();
+  dynamic_reconfigure::Config answer;
+  ASSERT_TRUE(reconfigure("invalid_variance", std::nan(""), &answer));
+  EXPECT_EQ(valueIn(answer.doubles, "invalid_variance", 0.0), 1.0) << "the answer is not the value in force";
+  double stored = 0.0;
+  ASSERT_TRUE(ros::param::get(std::string(kNs) + "/invalid_variance", stored));
+  EXPECT_EQ(stored, 1.0) << "the parameter server holds the refused value";
+  EXPECT_TRUE(waitFor([&] { return h.logLines("rejected settings change invalid_variance 1 -> nan") > 0; }, 3.0));
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "invalid_variance", 3.0));
+  const double t0 = 1100.0;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(h.send(turn()[k], t0 + 0.1 * k));
+  h.settle();
+  const auto imus = h.imus();
+  ASSERT_EQ(imus.size(), 2u) << "publish_invalid: one Imu per invalid estimate";
+  for (const auto& imu : imus) {
+    for (const double c : imu.angular_velocity_covariance) EXPECT_TRUE(std::isfinite(c));
+    EXPECT_EQ(imu.angular_velocity_covariance[0], 1.0);
+  }
+  ASSERT_TRUE(reconfigure("max_rate_dps", 2000.0));
+  ASSERT_TRUE(reconfigure("publish_invalid", false));
+}
+
+TEST(ReliabilityRos, ZeroNegativeAndTooSmallValuesAreRefusedNotClamped) {
+  Harness& h = *g_harness;
+  struct Case {
+    const char* name;
+    double value, in_force;
+    const char* needle;
+  };
+  const std::vector<Case> cases = {
+      {"invalid_variance", 0.0, 1.0, "invalid_variance must be in (0, 1000000]"},
+      {"invalid_variance", -1.0, 1.0, "invalid_variance must be in (0, 1000000]"},
+      {"rotation_bin_deg", 1e-12, 0.5, "rotation_bin_deg must be in [0.01, 10] deg"},
+      {"max_gap", std::numeric_limits<double>::infinity(), 1.0, "max_gap must be in [0.001, 3600] s, got inf"},
+  };
+  for (const Case& c : cases) {
+    h.clear();
+    dynamic_reconfigure::Config answer;
+    ASSERT_TRUE(reconfigure(c.name, c.value, &answer));
+    EXPECT_EQ(valueIn(answer.doubles, c.name, std::nan("")), c.in_force) << c.name << " " << c.value;
+    EXPECT_TRUE(waitFor([&] { return h.logLines(c.needle) > 0; }, 3.0)) << "no error line '" << c.needle << "'";
+  }
+}
+
+TEST(ReliabilityRos, NanMaxGapIsRefusedAndAGapStillResets) {
+  Harness& h = *g_harness;
+  dynamic_reconfigure::Config answer;
+  ASSERT_TRUE(reconfigure("max_gap", std::nan(""), &answer));
+  EXPECT_EQ(valueIn(answer.doubles, "max_gap", 0.0), 1.0);
+  h.clear();
+  const double t0 = 1200.0;
+  ASSERT_TRUE(h.send(turn()[0], t0));
+  ASSERT_TRUE(h.send(turn()[1], t0 + 0.1));
+  ASSERT_TRUE(h.send(turn()[2], t0 + 60.1));  // 60 s later: the state resets, no estimate
+  ASSERT_TRUE(h.send(turn()[3], t0 + 60.2));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 2u) << "the frame after the gap was paired across it";
+  EXPECT_NEAR(rotations[1].previous_stamp.toSec(), t0 + 60.1, 1e-6);
+  for (const auto& r : rotations) EXPECT_TRUE(r.valid) << r.status;
+  EXPECT_EQ(h.imus().size(), 2u);
 }
 
 }  // namespace
