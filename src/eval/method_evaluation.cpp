@@ -100,6 +100,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
       << " (invalid frames count as identity rotation in the errors)";
   if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
   if (run.stride > 1) out << ", stride " << run.stride;
+  if (run.scale != 1.0) out << ", images downscaled by " << fmt(run.scale, 3);
   if (run.degradation.any()) {
     out << ", images degraded (contrast " << fmt(run.degradation.contrast, 2) << ", noise "
         << fmt(run.degradation.noise_sigma, 1) << " grey levels";
@@ -168,6 +169,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("contrast", run.degradation.contrast)
       .add("noise", run.degradation.noise_sigma)
       .add("jpeg", run.degradation.jpeg_quality)
+      .add("scale", run.scale)
       .add("true_rot_mean_deg", a.true_rotation_mean_deg)
       .add("true_trans_mean_m", s.true_translation_mean)
       .add("gyro_mean_rate_dps", a.true_rate_mean_dps)

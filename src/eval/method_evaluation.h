@@ -57,6 +57,7 @@ struct RunDescription {
   std::string dataset, layout, truth;  ///< the sequence's name, layout and reference kind
   double outliers = 0.0;               ///< injected outlier fraction
   ImageDegradation degradation;        ///< applied to the images before the front end
+  double scale = 1.0;                  ///< images downscaled by this factor as read (Sequence::image_scale)
   int stride = 1;
   int hypotheses = 0;                  ///< per frame (vote, paper)
 };

@@ -46,6 +46,9 @@ const char* const kUsage =
     "                         image mean by F (dimmer footage: F < 1), then\n"
     "  --noise SIGMA          Gaussian pixel noise [grey levels] added, then\n"
     "  --jpeg Q               a JPEG round trip at quality Q, 1..100 (as render_sequence's)\n"
+    "  --scale F              downscale every image by F, 0 < F <= 1, as it is read (area\n"
+    "                         interpolation, before the degradations; the camera's fx, fy, cx, cy\n"
+    "                         follow, the distortion stays): the footage of a lower-resolution camera\n"
     "  --export-bearings FILE write the matched bearings of every pair (text)\n"
     "  --front-end F          native (default), orb (OpenCV ORB, 1500 features, BFMatcher with\n"
     "                         cross-check) or klt (goodFeaturesToTrack + calcOpticalFlowPyrLK)\n"
@@ -70,6 +73,7 @@ struct Options {
   std::string export_bearings;
   std::vector<std::string> sets;  ///< key=value, in order
   int hypotheses = -1;
+  double scale = 1.0;
   bool has_seed = false;
   uint64_t seed = 1;
   std::string backend;
@@ -110,6 +114,9 @@ Options parseOptions(int argc, char** argv) {
       o.pairs.degradation.noise_sigma = args.doubleValue(0.0, 255.0);
     } else if (args.is("--jpeg")) {
       o.pairs.degradation.jpeg_quality = static_cast<int>(args.intValue(1, 100));
+    } else if (args.is("--scale")) {
+      o.scale = args.doubleValue(0.0, 1.0);
+      if (!(o.scale > 0.0)) throw UsageError("--scale must be above 0");
     } else if (args.is("--max-matches")) {
       o.pairs.max_matches = static_cast<int>(args.intValue(1, 100000000));
     } else if (args.is("--export-bearings")) {
@@ -188,10 +195,11 @@ VisualGyroSettings settingsFrom(const Options& o) {
   return settings;
 }
 
-Sequence loadUsableSequence(const std::string& folder) {
+Sequence loadUsableSequence(const std::string& folder, double scale) {
   Sequence seq;
   try {
     seq = loadSequence(folder);
+    if (scale != 1.0) scaleSequence(&seq, scale);
   } catch (const std::exception& e) {
     throw DataError(e.what());
   }
@@ -210,7 +218,7 @@ int run(int argc, char** argv) {
   // spread some of its functions (ORB, brute-force matching, optical flow) over every core.
   cv::setNumThreads(1);
   const VisualGyroSettings settings = settingsFrom(o);
-  const Sequence seq = loadUsableSequence(o.folder);
+  const Sequence seq = loadUsableSequence(o.folder, o.scale);
 
   o.pairs.seed = o.has_seed ? o.seed : settings.estimator.seed;
   std::vector<eval::FramePair> pairs;
@@ -251,6 +259,7 @@ int run(int argc, char** argv) {
   description.truth = seq.truth;
   description.outliers = o.pairs.outliers;
   description.degradation = o.pairs.degradation;
+  description.scale = seq.image_scale;
   description.stride = o.pairs.stride;
   description.hypotheses = settings.estimator.hypotheses;
   for (const auto& s : summaries) std::cout << eval::summaryText(description, s);
