@@ -240,13 +240,15 @@ int run(int argc, char** argv) {
     o.sweep.methods = o.methods;
     o.sweep.seed = o.pairs.seed;
     o.sweep.refined_positions = refined_positions;
+    o.sweep.match_footprint = matchFootprint(seq.camera);
     eval::timingSweep(seq.name, 1.0 / seq.camera.fx(), o.sweep, settings, base, pairs);
     return 0;
   }
 
   std::vector<eval::MethodSummary> summaries;
   for (const std::string& method : o.methods) {
-    const std::unique_ptr<eval::MethodRunner> runner = eval::makeRunner(method, settings, base, refined_positions);
+    const std::unique_ptr<eval::MethodRunner> runner =
+        eval::makeRunner(method, settings, base, refined_positions, matchFootprint(seq.camera));
     summaries.push_back(eval::evaluateMethod(method, runner.get(), pairs));
     summaries.back().front_end = o.pairs.front_end;
     if (o.pairs.front_end == "native") summaries.back().matching = findSetting("matching")->text(settings);
