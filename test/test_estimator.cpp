@@ -682,6 +682,71 @@ TEST(Estimator, EstimateSameFrameDoesNotCountAsAFrame) {
   EXPECT_EQ(twice->frameCount(), 2u);
 }
 
+// The hull the descriptor-area check measures: the inliers' previous bearings on the normalised
+// image plane; a match the rotation does not explain, and a bearing too far off the axis for the
+// plane, stay out of it.
+TEST(InlierHull, AreaOfTheInliersOnTheImagePlane) {
+  std::vector<Vector3d> previous, current;
+  for (double x = -0.2; x <= 0.2 + 1e-12; x += 0.05)
+    for (double y = -0.1; y <= 0.1 + 1e-12; y += 0.05) previous.push_back(Vector3d(x, y, 1.0).normalized());
+  current = previous;
+  previous.push_back(Vector3d(0.9, 0.9, 1.0).normalized());  // far outside the grid, not explained
+  current.push_back(Vector3d(0.0, 0.0, 1.0));
+  previous.push_back(Vector3d(1.0, 0.0, 0.01).normalized());  // explained, but nearly 90 deg off axis
+  current.push_back(previous.back());
+  vg::FrameMatches matches;
+  matches.assign(previous, current);
+  vg::RefinedRotation identity;
+  identity.pure_rotation = true;
+  EXPECT_NEAR(vg::inlierHullArea(matches, identity, 0.1 * kDeg), 0.4 * 0.2, 1e-9);
+  // Fewer than three inliers span no area.
+  matches.assign({previous[0], previous[1]}, {current[0], current[1]});
+  EXPECT_EQ(vg::inlierHullArea(matches, identity, 0.1 * kDeg), 0.0);
+}
+
+// The vote method's validity check on how far its inliers spread: matches in a band across the
+// image whose hull holds four descriptor patches give an invalid estimate that says why, the same
+// matches with patches a fifth as large (twenty of them) a valid one, and without a footprint there
+// is no check at all.
+TEST(VoteMethod, InliersConcentratedWithinAFewDescriptorPatchesAreInvalid) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2 * kDeg, 0.3 * kDeg, 0.1 * kDeg);
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> ux(-0.3, 0.3), uy(-0.03, 0.03);
+  std::vector<Vector3d> previous, current;
+  for (int i = 0; i < 300; ++i) {
+    current.push_back(Vector3d(ux(rng), uy(rng), 1.0).normalized());
+    previous.push_back(perturb(R * current.back(), 0.2e-3, rng));
+  }
+  const double band = 0.6 * 0.06;  // the band's area on the image plane, about the inliers' hull
+  const auto estimateWith = [&](double footprint) {
+    auto est = vg::createRotationEstimator(cpuSettings("vote"));
+    est->setRefinedPositions(true);
+    est->setMatchFootprint(footprint);
+    return est->estimate(previous, current);
+  };
+  const vg::RotationResult concentrated = estimateWith(std::sqrt(band / 4.0));
+  EXPECT_EQ(concentrated.status, vg::FrameStatus::kTooFewInliers);
+  EXPECT_NE(concentrated.reason.find("concentrated"), std::string::npos) << concentrated.reason;
+  EXPECT_GT(concentrated.diagnostics.descriptor_areas, 3.0);
+  EXPECT_LT(concentrated.diagnostics.descriptor_areas, vg::kMinDescriptorAreas);
+
+  const vg::RotationResult spread = estimateWith(std::sqrt(band / 20.0));
+  ASSERT_TRUE(spread.valid()) << spread.reason;
+  EXPECT_LT(vg::rotationAngleBetween(spread.rotation, R), 0.05 * kDeg);
+  EXPECT_NEAR(spread.diagnostics.descriptor_areas, 20.0, 2.0);
+
+  const vg::RotationResult unknown = estimateWith(0.0);
+  ASSERT_TRUE(unknown.valid()) << unknown.reason;
+  EXPECT_TRUE(std::isnan(unknown.diagnostics.descriptor_areas));
+  EXPECT_TRUE(unknown.rotation.isApprox(spread.rotation, 1e-12));
+  // Not finite or not positive: no footprint.
+  auto est = vg::createRotationEstimator(cpuSettings("vote"));
+  for (double bad : {-1.0, std::nan(""), HUGE_VAL}) {
+    est->setMatchFootprint(bad);
+    EXPECT_EQ(est->matchFootprint(), 0.0) << bad;
+  }
+}
+
 TEST(VoteMethod, WrongPriorFallsBackToTheWideWindow) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(12 * kDeg, 0.0, 0.0);
   const Scene s = makeScene(R, Vector3d::Zero(), 400, 0.5e-3, 0.2, 5, 50, 25);

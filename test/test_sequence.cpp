@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
 
 #include "test_support.h"
 #include "visual_gyro/sequence.h"
@@ -373,6 +374,85 @@ TEST(Sequence, KittiLayoutDetails) {
   EXPECT_EQ(loadSequence(root.string()).truth_sigma_deg, Eigen::Vector3d::Constant(0.0125));
   writeFile(root / kTruthSigmaFile, "0.01 0.02\n0.03\n");
   EXPECT_EQ(loadSequence(root.string()).truth_sigma_deg, Eigen::Vector3d(0.01, 0.02, 0.03));
+  fs::remove_all(root.parent_path());
+}
+
+/// Intensity-weighted centroid [px] of a grey image (pixel centres at whole coordinates).
+Eigen::Vector2d centroid(const cv::Mat& image) {
+  cv::Mat grey;
+  image.convertTo(grey, CV_64F);
+  double mass = 0.0, x = 0.0, y = 0.0;
+  for (int r = 0; r < grey.rows; ++r)
+    for (int c = 0; c < grey.cols; ++c) {
+      const double v = grey.at<double>(r, c);
+      mass += v;
+      x += v * c;
+      y += v * r;
+    }
+  return Eigen::Vector2d(x / mass, y / mass);
+}
+
+// Downscaling as evaluate --scale does it: a blob's centre, seen through the downscaled image,
+// lies where the downscaled camera model projects the blob's bearing, at every factor (integer
+// ratios and not); the distortion stays as it was.
+TEST(Sequence, DownscaledCameraProjectsWhereTheDownscaledImageShows) {
+  const CameraModel camera(400.0, 380.0, 199.3, 151.7, 401, 301, DistortionModel::kPlumbBob,
+                           {-0.12, 0.03, 0.001, -0.0005});
+  const Eigen::Vector2d blob(231.3, 118.8);
+  cv::Mat image(camera.height(), camera.width(), CV_8UC1);
+  for (int r = 0; r < image.rows; ++r)
+    for (int c = 0; c < image.cols; ++c) {
+      const double d2 = (c - blob.x()) * (c - blob.x()) + (r - blob.y()) * (r - blob.y());
+      image.at<uint8_t>(r, c) = static_cast<uint8_t>(std::lround(250.0 * std::exp(-d2 / (2.0 * 7.0 * 7.0))));
+    }
+  ASSERT_LT((centroid(image) - blob).norm(), 0.01);
+  const Eigen::Vector3d bearing = camera.bearing(blob.x(), blob.y());
+  for (double factor : {0.5, 0.25, 0.2, 0.15, 0.1}) {
+    SCOPED_TRACE(factor);
+    const cv::Mat small = scaledImage(image, factor);
+    const CameraModel scaled = scaledCamera(camera, factor);
+    ASSERT_EQ(small.cols, scaled.width());
+    ASSERT_EQ(small.rows, scaled.height());
+    EXPECT_EQ(small.cols, std::lround(401 * factor));
+    EXPECT_EQ(small.rows, std::lround(301 * factor));
+    EXPECT_EQ(scaled.distortion(), camera.distortion());
+    EXPECT_EQ(scaled.distortionModel(), camera.distortionModel());
+    EXPECT_TRUE(scaled.validate().empty()) << scaled.validate();
+    // Area interpolation keeps each pixel's mass where its area went: the centroid follows the
+    // pixels' mapping, which the model must follow too.
+    const Eigen::Vector2d seen = centroid(small), projected = scaled.project(bearing);
+    std::printf("factor %.2f: blob at (%.3f, %.3f) px, projected at (%.3f, %.3f) px\n", factor, seen.x(), seen.y(),
+                projected.x(), projected.y());
+    EXPECT_LT((seen - projected).norm(), 0.03);
+  }
+  // Factor 1 changes nothing; a tiny image keeps at least one pixel a side.
+  EXPECT_EQ(scaledCamera(camera, 1.0).fx(), camera.fx());
+  EXPECT_EQ(scaledCamera(camera, 1.0).cx(), camera.cx());
+  EXPECT_EQ(cv::norm(scaledImage(image, 1.0), image, cv::NORM_INF), 0.0);
+  EXPECT_EQ(scaledImageSize(5, 3, 0.1), cv::Size(1, 1));
+  for (double bad : {0.0, -0.5, 1.01, std::nan("")}) {
+    EXPECT_THROW(scaledImageSize(401, 301, bad), std::invalid_argument) << bad;
+    EXPECT_THROW(scaledCamera(camera, bad), std::invalid_argument) << bad;
+  }
+  EXPECT_THROW(scaledImage(cv::Mat(), 0.5), std::invalid_argument);
+  EXPECT_THROW(scaledImageSize(0, 10, 0.5), std::invalid_argument);
+}
+
+// A loaded sequence downscaled once: its camera and every image it reads shrink alike.
+TEST(Sequence, ScaledSequenceReadsDownscaledImages) {
+  const fs::path root = fs::path(test::makeTempDir("seq_scaled")) / "tiny";
+  for (int k = 0; k < 2; ++k) writeImage(root / "image_0" / ("00000" + std::to_string(k) + ".png"));
+  writeFile(root / "calib.txt", "10 0 7.5 0 0 11 5.5 0 0 0 1 0\n");
+  Sequence seq = loadSequence(root.string());
+  EXPECT_EQ(readImage(seq, 1).size(), cv::Size(16, 12));
+  scaleSequence(&seq, 0.5);
+  EXPECT_EQ(seq.image_scale, 0.5);
+  EXPECT_EQ(readImage(seq, 1).size(), cv::Size(8, 6));
+  EXPECT_EQ(seq.camera.width(), 8);
+  EXPECT_DOUBLE_EQ(seq.camera.fx(), 5.0);
+  EXPECT_DOUBLE_EQ(seq.camera.cx(), (7.5 + 0.5) * 0.5 - 0.5);
+  EXPECT_THROW(scaleSequence(&seq, 0.5), std::invalid_argument);
+  EXPECT_THROW(readImage(seq, 2), std::runtime_error);
   fs::remove_all(root.parent_path());
 }
 

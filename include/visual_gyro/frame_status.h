@@ -21,7 +21,8 @@ enum class FrameStatus {
   kTooFewMatches,     ///< fewer matches than min_matches
   kDegenerate,        ///< no hypothesis voted: every triple was degenerate
   kFlatHistogram,     ///< the winning bin or cell has fewer than min_votes votes
-  kTooFewInliers,     ///< the result explains fewer than min_inlier_ratio of the matches
+  kTooFewInliers,     ///< the result explains fewer than min_inlier_ratio of the matches, or its
+                      ///< inliers cover fewer than kMinDescriptorAreas descriptor patches
   kImplausibleRate,   ///< the rate exceeds max_rate_dps
   kEstimatorFailed,   ///< the backend failed mid-stream (e.g. a lost GPU)
 };

@@ -100,6 +100,24 @@ inline double rotationCovarianceFloor(bool refined_positions) {
   return refined_positions ? kRefinedPositionsCovarianceFloor : kIntegerPositionsCovarianceFloor;
 }
 
+/// Fewest descriptor patches the vote method's inliers must cover for a valid estimate: the area
+/// of their convex hull on the image plane over the square of the angle a match's descriptor patch
+/// spans (RotationEstimator::setMatchFootprint). A match is located by its patch, and matches
+/// whose patches overlap share what biases a patch's position (a depth edge across it, its change
+/// of scale under forward motion, blur). The spatial jackknife, from which the covariance takes
+/// such shared errors, sees them only between groups of matches that share no patch. When all the
+/// inliers lie within a few patches of one another (in a small image the descriptor's border
+/// leaves a band across its middle), those errors neither average out nor show, and the estimate
+/// is further off than its covariance says. The value 8 is measured, on the shared sequences
+/// downscaled with evaluate --scale (2026-12-04, before this check existed), from the hull of a
+/// frame's matches: honest at 8.2-9.2 patches (kitti_turn at scale 0.2, NEES mean 1.06) and at
+/// 9.2-11 (euroc_mh01_shake at 0.2, NEES 2.0); over-confident at 5.9-7.1 (euroc_mh01_shake at
+/// 0.175: 6-12 % of the frames beyond the 99 % bound, seeds 1-2) and below on kitti_turn and
+/// euroc_mh01_shake (scales 0.15 and 0.1, 2-4 patches and fewer: NEES mean 3.9-22, 8-44 % beyond).
+/// kitti_straight stayed honest at 0.15 (its forward motion has no rotation to confuse with
+/// translation); its frames there are invalid too.
+constexpr double kMinDescriptorAreas = 8.0;
+
 /// Every estimator setting with its range, unit and doc (see setting_field.h).
 const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields();
 
@@ -175,6 +193,9 @@ struct VoteDiagnostics {
   /// The covariance also took the spread of refits without each spatial group of the matches (run
   /// when near_miss_share is 0.1 or more; doc/covariance.md).
   bool refit_jackknife = false;
+  /// Descriptor patches the inliers' convex hull covers on the image plane (its area over the
+  /// squared match footprint; kMinDescriptorAreas); NaN when the footprint is unknown.
+  double descriptor_areas = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Result of one rotation estimate.
@@ -263,6 +284,12 @@ class RotationEstimator {
   /// front end (VisualGyro from FrontEndSettings::subpixel_refinement), not a user setting.
   void setRefinedPositions(bool refined) { refined_positions_ = refined; }
   bool refinedPositions() const { return refined_positions_; }
+  /// Angle [rad] a match's descriptor patch spans in the matches' images (matchFootprint() of the
+  /// camera; twice that for half-resolution matches). The vote method's estimate is invalid
+  /// (kTooFewInliers) when its inliers cover fewer than kMinDescriptorAreas such patches. 0, the
+  /// default: unknown, no such check. A value that is not finite and positive counts as 0.
+  void setMatchFootprint(double angle) { match_footprint_ = std::isfinite(angle) && angle > 0.0 ? angle : 0.0; }
+  double matchFootprint() const { return match_footprint_; }
   const EstimatorSettings& settings() const { return settings_; }
   /// "cpu" or "cuda".
   std::string backendName() const;
@@ -280,6 +307,7 @@ class RotationEstimator {
 
   EstimatorSettings settings_;
   bool refined_positions_ = false;
+  double match_footprint_ = 0.0;
   std::unique_ptr<HypothesisVoter> voter_;
   double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
   double vote_device_ms_ = 0.0;  // this frame's kernel time so far

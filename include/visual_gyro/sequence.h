@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,9 @@ struct Sequence {
   /// `truth_sigma_deg.txt` when present, else kKittiPosesTiltSigmaDeg about x and z and
   /// kKittiPosesHeadingSigmaDeg about y; EuRoC poses: kEurocPosesSigmaDeg; zero without pose truth.
   Eigen::Vector3d truth_sigma_deg = Eigen::Vector3d::Zero();
+  /// Factor by which every image is downscaled as it is read (readImage); `camera` is already the
+  /// downscaled one (scaleSequence). 1: the images as stored.
+  double image_scale = 1.0;
 
   bool hasPoses() const { return !orientations.empty(); }
   bool hasGyro() const { return !gyro.empty(); }
@@ -67,6 +71,32 @@ struct Sequence {
   /// poses' rotation vector / dt when poses exist, else the gyro's mean rate.
   bool trueAngularVelocity(size_t k, Eigen::Vector3d* omega) const;
 };
+
+/// Size [px] of a width x height image downscaled by `factor`, 0 < factor <= 1: each side
+/// rounded to the nearest whole pixel, at least 1. Throws std::invalid_argument for a factor out
+/// of range or a non-positive size.
+cv::Size scaledImageSize(int width, int height, double factor);
+
+/// `camera` for its images downscaled by `factor` (scaledImageSize). Each axis scales by the ratio
+/// the rounded size realises, s = width' / width (height' / height for y), the one an area resize
+/// to that size maps pixels with: fx' = s fx and, pixel centres at whole coordinates,
+/// cx' = (cx + 0.5) s - 0.5 (likewise fy, cy). The distortion acts on normalised coordinates and
+/// stays. Throws std::invalid_argument for a factor out of (0, 1].
+CameraModel scaledCamera(const CameraModel& camera, double factor);
+
+/// `image` downscaled by `factor` to scaledImageSize with area interpolation (each output pixel
+/// the mean of the input area it covers, as a sensor with larger pixels would see it); a copy of
+/// `image` for factor 1. Throws std::invalid_argument for an empty image or a factor out of range.
+cv::Mat scaledImage(const cv::Mat& image, double factor);
+
+/// Downscales a loaded sequence by `factor` (evaluate --scale): its camera becomes
+/// scaledCamera(camera, factor) and readImage resizes every image alike. Throws
+/// std::invalid_argument for a factor out of (0, 1] or a sequence already downscaled.
+void scaleSequence(Sequence* sequence, double factor);
+
+/// Image k of the sequence in grayscale, downscaled by its image_scale. Throws std::runtime_error
+/// naming the file when it cannot be read.
+cv::Mat readImage(const Sequence& sequence, size_t k);
 
 /// Loads a folder in the KITTI odometry layout (image_l/ or image_0/, calib.txt, optional
 /// poses.txt and times.txt; 10 Hz assumed without times.txt) or the EuRoC ASL layout (cam0/,

@@ -111,6 +111,12 @@ std::string validateVisualGyroSettings(const VisualGyroSettings& settings);
 std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,
                                const VisualGyroSettings& settings);
 
+/// Angle [rad] the front end's descriptor patch (2 kBriefHalfPatch + 1 pixels) spans in the images
+/// of `camera` at its principal point, along the axis of the shorter focal length:
+/// (2 kBriefHalfPatch + 1) / min(fx, fy). What the vote method checks its inliers' spread against
+/// (RotationEstimator::setMatchFootprint).
+double matchFootprint(const CameraModel& camera);
+
 /// Smallest image side the front end can describe a keypoint in: the BRIEF patch plus the
 /// detector's border on both sides [px].
 constexpr int kMinImageSide = 2 * (kBriefHalfPatch + 1) + 1;

@@ -5,6 +5,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <iterator>
 #include <limits>
 #include <sstream>
@@ -868,6 +869,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   diagnostics.epipolar_inliers = best.epipolar_inliers;
   diagnostics.residual_sigma = refined.residual_sigma;
   if (prior_usable) diagnostics.prior_offset = rotationAngleBetween(so3Exp(prior.rotation_vector), refined.rotation);
+  if (match_footprint_ > 0.0)
+    diagnostics.descriptor_areas =
+        inlierHullArea(matches, refined, threshold) / (match_footprint_ * match_footprint_);
 
   result.status = FrameStatus::kValid;
   if (result.winning_votes < settings_.min_votes) {
@@ -876,6 +880,12 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   } else if (refined.inliers < needed) {
     result.invalidate(FrameStatus::kTooFewInliers,
                       std::to_string(refined.inliers) + " inliers of " + std::to_string(n) + " matches");
+  } else if (diagnostics.descriptor_areas < kMinDescriptorAreas) {  // false for NaN: no footprint, no check
+    std::ostringstream why;
+    why << "inliers too concentrated: their hull covers " << std::fixed << std::setprecision(1)
+        << diagnostics.descriptor_areas << " descriptor patches (need " << std::defaultfloat << kMinDescriptorAreas
+        << "; the image may be too small for the descriptor)";
+    result.invalidate(FrameStatus::kTooFewInliers, why.str());
   }
   return result;
 }

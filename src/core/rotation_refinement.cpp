@@ -727,6 +727,43 @@ void spatialGroups(const FrameMatches& m, int k, std::vector<uint32_t>* order, s
 
 }  // namespace
 
+double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double threshold) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  rotateAll(m, refined.rotation);
+  s.residuals.resize(n);
+  passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
+  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  std::vector<std::array<double, 2>>& points = s.plane;
+  points.clear();
+  for (size_t i = 0; i < n; ++i) {
+    if (usable(s, i) && s.residuals[i] < gate * gate && m.pz[i] >= kMinHullDepth)
+      points.push_back({m.px[i] / m.pz[i], m.py[i] / m.pz[i]});
+  }
+  if (points.size() < 3) return 0.0;
+  // Andrew's monotone chain: the lower hull left to right, then the upper one back.
+  std::sort(points.begin(), points.end());
+  const auto turn = [](const std::array<double, 2>& o, const std::array<double, 2>& a, const std::array<double, 2>& b) {
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+  };
+  std::vector<std::array<double, 2>>& hull = s.hull;
+  hull.resize(2 * points.size());
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
+    hull[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && turn(hull[k - 2], hull[k - 1], points[i]) <= 0.0) --k;
+    hull[k++] = points[i];
+  }
+  // The chain ends where it began; the shoelace formula over its k - 1 distinct corners.
+  double twice = 0.0;
+  for (size_t i = 0; i + 1 < k; ++i) twice += hull[i][0] * hull[i + 1][1] - hull[i + 1][0] * hull[i][1];
+  return 0.5 * std::abs(twice);
+}
+
 JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {
   JackknifeSpread out;
   const size_t n = m.size();

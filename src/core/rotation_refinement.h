@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -64,6 +65,9 @@ class FrameMatches {
     std::vector<uint32_t> members;  ///< the jackknife's inliers by group, each group in index order
     std::vector<uint32_t> all_order;  ///< the refit jackknife's matches, ordered into spatial groups
     std::vector<int> all_group;       ///< the refit jackknife's group of each match
+    /// The inliers on the previous frame's normalised image plane, and their convex hull
+    /// (inlierHullArea).
+    std::vector<std::array<double, 2>> plane, hull;
   };
   Scratch scratch;
 
@@ -146,6 +150,16 @@ RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotat
 
 /// Fewest inliers a jackknife group holds (the groups per axis shrink until each has this many).
 constexpr int kMinJackknifeGroupSize = 10;
+
+/// Area of the convex hull of the inliers of `refined` (jackknifeSpread's: residual within the
+/// inlier gate of refineRotation's covariance) on the previous frame's normalised image plane
+/// (x / z, y / z of the previous bearings; squared radians near the optical axis, where the plane
+/// is tangent to the sphere of directions). Bearings less than kMinHullDepth in front of the
+/// camera (more than ~84 deg off its axis) are left out. 0 for fewer than three inliers.
+double inlierHullArea(FrameMatches& matches, const RefinedRotation& refined, double threshold);
+/// z of the bearings inlierHullArea leaves out below: the plane stretches without bound towards
+/// 90 deg off the axis.
+constexpr double kMinHullDepth = 0.1;
 
 /// Delete-a-group jackknife of a refined rotation.
 struct JackknifeSpread {

@@ -113,6 +113,10 @@ std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt
   return "";
 }
 
+double matchFootprint(const CameraModel& camera) {
+  return (2.0 * kBriefHalfPatch + 1.0) / std::min(camera.fx(), camera.fy());
+}
+
 VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& settings,
                        const WarningSink& warn)
     : camera_(camera), settings_(settings), front_end_(settings.front_end),
@@ -121,6 +125,7 @@ VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& sett
   checkSettings(settings);
   estimator_ = createRotationEstimator(settings.estimator, warn);
   estimator_->setRefinedPositions(settings.front_end.subpixel_refinement);
+  estimator_->setMatchFootprint(matchFootprint(camera_));
 }
 
 void VisualGyro::reset() {
@@ -138,6 +143,7 @@ void VisualGyro::reset() {
 void VisualGyro::setCamera(const CameraModel& camera) {
   checkCamera(camera);
   camera_ = camera;
+  estimator_->setMatchFootprint(matchFootprint(camera_));
   reset();
 }
 
@@ -351,7 +357,10 @@ RotationResult VisualGyro::estimateAtBestResolution(const RotationPrior& prior, 
   const int full_tracked = result->tracked;
   half_resolution_used_ = true;
   collectMatches(result);
+  // A half-resolution descriptor patch spans twice the angle of a full-resolution one.
+  estimator_->setMatchFootprint(2.0 * matchFootprint(camera_));
   RotationResult half = estimator_->estimateSameFrame(result->previous_bearings, result->current_bearings, prior);
+  estimator_->setMatchFootprint(matchFootprint(camera_));
   half.times += full.times;
   // The estimate the data pin down better, by both its support and its covariance. A match count
   // alone cannot tell: at half resolution a sharp corner is located about half as precisely, so

@@ -125,8 +125,13 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
   const bool progress = !o.quiet && isatty(fileno(stderr));
   for (size_t k = 0; k < seq.image_paths.size(); k += o.stride) {
     if (o.frames > 0 && static_cast<long long>(pairs.size()) >= o.frames) break;
-    cv::Mat gray = cv::imread(seq.image_paths[k], cv::IMREAD_GRAYSCALE);
-    if (gray.empty()) throw DataError("cannot read image " + seq.image_paths[k]);
+    cv::Mat gray;
+    try {
+      gray = readImage(seq, k);
+    } catch (const std::exception& e) {
+      throw DataError(e.what());
+    }
+    // Degraded at the resolution the front end sees, as a camera of that resolution would be.
     if (o.degradation.any()) gray = degradeImage(gray, o.degradation, o.seed * 0x9E3779B97F4A7C15ull + k);
     FrameResult r;
     if (other) {

@@ -46,8 +46,9 @@ struct FramePairOptions {
   double outliers = 0.0;          ///< fraction of matches replaced by wrong pairings
   uint64_t seed = 1;              ///< seed of the subset and the outliers
   std::string front_end = "native";  ///< native, or a comparison front end (orb, klt)
-  /// Applied to every image as it is read, before any front end sees it (its noise drawn from
-  /// `seed` and the image's index, so every method and front end sees the same images).
+  /// Applied to every image as it is read (after the sequence's own downscaling, image_scale),
+  /// before any front end sees it (its noise drawn from `seed` and the image's index, so every
+  /// method and front end sees the same images).
   ImageDegradation degradation;
   bool quiet = false;             ///< no progress on stderr
 };

@@ -147,6 +147,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
       << " (invalid frames count as identity rotation in the errors)";
   if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
   if (run.stride > 1) out << ", stride " << run.stride;
+  if (run.scale != 1.0) out << ", images downscaled by " << fmt(run.scale, 3);
   if (run.degradation.any()) {
     out << ", images degraded (contrast " << fmt(run.degradation.contrast, 2) << ", noise "
         << fmt(run.degradation.noise_sigma, 1) << " grey levels";
@@ -221,6 +222,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("contrast", run.degradation.contrast)
       .add("noise", run.degradation.noise_sigma)
       .add("jpeg", run.degradation.jpeg_quality)
+      .add("scale", run.scale)
       .add("true_rot_mean_deg", a.true_rotation_mean_deg)
       .add("true_trans_mean_m", s.true_translation_mean)
       .add("gyro_mean_rate_dps", a.true_rate_mean_dps)
@@ -237,7 +239,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
   if (!f) throw DataError("cannot write " + path);
   f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
        "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
-       "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,near_miss_share,refit_jackknife,half_resolution,err_x_deg,err_y_deg,"
+       "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,near_miss_share,refit_jackknife,descriptor_areas,half_resolution,err_x_deg,err_y_deg,"
        "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,error\n";
   auto num = [](double v) -> std::string {
     if (!std::isfinite(v)) return "";
@@ -259,7 +261,8 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
         << (r.diagnostics.valley_moved ? "moved" : r.diagnostics.valley_searched ? "searched" : "") << ','
         << num(r.diagnostics.prior_offset * kRadToDeg) << ',' << num(r.diagnostics.residual_sigma * kRadToDeg) << ','
         << num(r.diagnostics.effective_matches) << ',' << num(r.diagnostics.near_miss_share) << ','
-        << (r.diagnostics.refit_jackknife ? 1 : 0) << ',' << (r.half_resolution ? 1 : 0);
+        << (r.diagnostics.refit_jackknife ? 1 : 0) << ',' << num(r.diagnostics.descriptor_areas) << ','
+        << (r.half_resolution ? 1 : 0);
       for (int k = 0; k < 3; ++k) f << ',' << num(e.error_vector_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.translation[k]);

@@ -73,6 +73,7 @@ struct RunDescription {
   std::string dataset, layout, truth;  ///< the sequence's name, layout and reference kind
   double outliers = 0.0;               ///< injected outlier fraction
   ImageDegradation degradation;        ///< applied to the images before the front end
+  double scale = 1.0;                  ///< images downscaled by this factor as read (Sequence::image_scale)
   int stride = 1;
   int hypotheses = 0;                  ///< per frame (vote, paper)
   /// For a gyro reference: the alignment removed from it (offset and bias); null when the gyro is

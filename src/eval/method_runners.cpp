@@ -17,11 +17,12 @@ double elapsedMs(std::chrono::steady_clock::time_point start) {
 /// valid rotation vector, rescaled to this interval; none after an invalid estimate).
 class OwnEstimatorRunner : public MethodRunner {
  public:
-  OwnEstimatorRunner(const EstimatorSettings& settings, bool refined_positions)
+  OwnEstimatorRunner(const EstimatorSettings& settings, bool refined_positions, double match_footprint)
       : estimator_(createRotationEstimator(settings, [](const std::string& w) {
           std::cerr << "warning: " << w << "\n";
         })) {
     estimator_->setRefinedPositions(refined_positions);
+    estimator_->setMatchFootprint(match_footprint);
   }
 
   MethodEstimate run(const FramePair& pair) override {
@@ -144,11 +145,12 @@ std::string methodProblem(const std::string& method) {
 }
 
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
-                                         const BaselineSettings& baseline, bool refined_positions) {
+                                         const BaselineSettings& baseline, bool refined_positions,
+                                         double match_footprint) {
   std::unique_ptr<MethodRunner> runner;
   EstimatorSettings estimator = settings.estimator;
   if (parseMethod(method, &estimator.method)) {
-    runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions);
+    runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions, match_footprint);
   } else {
     runner = std::make_unique<BaselineRunner>(method, baseline);
   }

@@ -18,6 +18,8 @@ namespace metrics {
 
 /// 99 % quantile of the chi-square distribution with 3 degrees of freedom.
 constexpr double kChiSquare3Dof99 = 11.345;
+/// 99.9 % quantile of the chi-square distribution with 3 degrees of freedom.
+constexpr double kChiSquare3Dof999 = 16.266;
 
 /// One frame's estimate. R maps current-frame bearings into the previous frame (b_prev ~ R b_cur).
 struct FrameEstimate {

@@ -25,6 +25,9 @@ struct TimingSweepOptions {
   /// The pairs' positions are sub-pixel (refinesPositions of their front end): the estimators'
   /// covariance model, and so their time, depends on it.
   bool refined_positions = false;
+  /// The angle a match's descriptor patch spans [rad] (matchFootprint() of the camera): the vote
+  /// method's check of its inliers' spread.
+  double match_footprint = 0.0;
 };
 
 /// Two series: over hypotheses at a fixed number of matches (methods without a hypothesis count,

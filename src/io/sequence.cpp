@@ -20,6 +20,7 @@
 #include <stdexcept>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace visual_gyro {
 namespace {
@@ -490,6 +491,53 @@ bool Sequence::trueAngularVelocity(size_t k, Eigen::Vector3d* omega) const {
   const Eigen::AngleAxisd aa(R);
   *omega = aa.angle() * aa.axis() / dt;
   return true;
+}
+
+cv::Size scaledImageSize(int width, int height, double factor) {
+  if (!(factor > 0.0 && factor <= 1.0))
+    throw std::invalid_argument("image scale must be in (0, 1], got " + std::to_string(factor));
+  if (width < 1 || height < 1)
+    throw std::invalid_argument("image size must be positive, got " + std::to_string(width) + "x" +
+                                std::to_string(height));
+  const auto side = [factor](int length) { return std::max(1, static_cast<int>(std::lround(factor * length))); };
+  return cv::Size(side(width), side(height));
+}
+
+CameraModel scaledCamera(const CameraModel& camera, double factor) {
+  const cv::Size size = scaledImageSize(camera.width(), camera.height(), factor);
+  // The ratio the rounded size realises, not `factor` itself: an area resize to that size maps
+  // output pixel centre x' to input (x' + 0.5) w / w' - 0.5, and the model must follow it.
+  const double sx = static_cast<double>(size.width) / camera.width();
+  const double sy = static_cast<double>(size.height) / camera.height();
+  return CameraModel(camera.fx() * sx, camera.fy() * sy, (camera.cx() + 0.5) * sx - 0.5,
+                     (camera.cy() + 0.5) * sy - 0.5, size.width, size.height, camera.distortionModel(),
+                     camera.distortion());
+}
+
+cv::Mat scaledImage(const cv::Mat& image, double factor) {
+  if (image.empty()) throw std::invalid_argument("scaledImage: empty image");
+  const cv::Size size = scaledImageSize(image.cols, image.rows, factor);
+  if (size == image.size()) return image.clone();
+  cv::Mat out;
+  cv::resize(image, out, size, 0.0, 0.0, cv::INTER_AREA);
+  return out;
+}
+
+void scaleSequence(Sequence* sequence, double factor) {
+  if (sequence->image_scale != 1.0)
+    throw std::invalid_argument("scaleSequence: the sequence is already downscaled (by " +
+                                std::to_string(sequence->image_scale) + ")");
+  sequence->camera = scaledCamera(sequence->camera, factor);
+  sequence->image_scale = factor;
+}
+
+cv::Mat readImage(const Sequence& sequence, size_t k) {
+  if (k >= sequence.image_paths.size())
+    throw std::runtime_error("readImage: image " + std::to_string(k) + " of " +
+                             std::to_string(sequence.image_paths.size()));
+  const cv::Mat gray = cv::imread(sequence.image_paths[k], cv::IMREAD_GRAYSCALE);
+  if (gray.empty()) throw std::runtime_error("cannot read image " + sequence.image_paths[k]);
+  return sequence.image_scale == 1.0 ? gray : scaledImage(gray, sequence.image_scale);
 }
 
 Sequence loadSequence(const std::string& folder) {

@@ -47,6 +47,9 @@ const char* const kUsage =
     "                         image mean by F (dimmer footage: F < 1), then\n"
     "  --noise SIGMA          Gaussian pixel noise [grey levels] added, then\n"
     "  --jpeg Q               a JPEG round trip at quality Q, 1..100 (as render_sequence's)\n"
+    "  --scale F              downscale every image by F, 0 < F <= 1, as it is read (area\n"
+    "                         interpolation, before the degradations; the camera's fx, fy, cx, cy\n"
+    "                         follow, the distortion stays): the footage of a lower-resolution camera\n"
     "  --export-bearings FILE write the matched bearings of every pair (text)\n"
     "  --front-end F          native (default), orb (OpenCV ORB, 1500 features, BFMatcher with\n"
     "                         cross-check) or klt (goodFeaturesToTrack + calcOpticalFlowPyrLK)\n"
@@ -73,6 +76,7 @@ struct Options {
   std::string export_bearings;
   std::vector<std::string> sets;  ///< key=value, in order
   int hypotheses = -1;
+  double scale = 1.0;
   bool has_seed = false;
   uint64_t seed = 1;
   std::string backend;
@@ -114,6 +118,9 @@ Options parseOptions(int argc, char** argv) {
       o.pairs.degradation.noise_sigma = args.doubleValue(0.0, 255.0);
     } else if (args.is("--jpeg")) {
       o.pairs.degradation.jpeg_quality = static_cast<int>(args.intValue(1, 100));
+    } else if (args.is("--scale")) {
+      o.scale = args.doubleValue(0.0, 1.0);
+      if (!(o.scale > 0.0)) throw UsageError("--scale must be above 0");
     } else if (args.is("--max-matches")) {
       o.pairs.max_matches = static_cast<int>(args.intValue(1, 100000000));
     } else if (args.is("--export-bearings")) {
@@ -194,10 +201,11 @@ VisualGyroSettings settingsFrom(const Options& o) {
   return settings;
 }
 
-Sequence loadUsableSequence(const std::string& folder) {
+Sequence loadUsableSequence(const std::string& folder, double scale) {
   Sequence seq;
   try {
     seq = loadSequence(folder);
+    if (scale != 1.0) scaleSequence(&seq, scale);
   } catch (const std::exception& e) {
     throw DataError(e.what());
   }
@@ -216,7 +224,7 @@ int run(int argc, char** argv) {
   // spread some of its functions (ORB, brute-force matching, optical flow) over every core.
   cv::setNumThreads(1);
   const VisualGyroSettings settings = settingsFrom(o);
-  const Sequence seq = loadUsableSequence(o.folder);
+  const Sequence seq = loadUsableSequence(o.folder, o.scale);
 
   o.pairs.seed = o.has_seed ? o.seed : settings.estimator.seed;
   std::vector<eval::FramePair> pairs;
@@ -238,13 +246,15 @@ int run(int argc, char** argv) {
     o.sweep.methods = o.methods;
     o.sweep.seed = o.pairs.seed;
     o.sweep.refined_positions = refined_positions;
+    o.sweep.match_footprint = matchFootprint(seq.camera);
     eval::timingSweep(seq.name, 1.0 / seq.camera.fx(), o.sweep, settings, base, pairs);
     return 0;
   }
 
   std::vector<eval::MethodSummary> summaries;
   for (const std::string& method : o.methods) {
-    const std::unique_ptr<eval::MethodRunner> runner = eval::makeRunner(method, settings, base, refined_positions);
+    const std::unique_ptr<eval::MethodRunner> runner =
+        eval::makeRunner(method, settings, base, refined_positions, matchFootprint(seq.camera));
     summaries.push_back(eval::evaluateMethod(method, runner.get(), pairs));
     summaries.back().front_end = o.pairs.front_end;
     if (o.pairs.front_end == "native") summaries.back().matching = findSetting("matching")->text(settings);
@@ -269,6 +279,7 @@ int run(int argc, char** argv) {
   description.truth = seq.truth;
   description.outliers = o.pairs.outliers;
   description.degradation = o.pairs.degradation;
+  description.scale = seq.image_scale;
   description.stride = o.pairs.stride;
   description.hypotheses = settings.estimator.hypotheses;
   description.gyro_alignment = gyro_aligned ? &gyro_alignment : nullptr;
