@@ -52,18 +52,22 @@ start_all=${SECONDS}
 echo "[score] methods ${METHODS}; seeds ${SEEDS}; at most ${FRAMES} pairs per case; backend ${BACKEND}; out ${OUT}"
 
 # render <name> <render_sequence options...>: renders into rendered/<name> unless a render with the
-# same options by the same program is there already.
+# same options, newer than the program and the renderer's library, is there already.
 render() {
   local name=$1
   shift
-  local dir="${OUT}/rendered/${name}" spec="--frames ${RENDER_FRAMES} $*"
-  if [[ -f ${dir}/render_options.txt && $(cat "${dir}/render_options.txt") == "${spec}" && ${dir}/render_options.txt -nt ${RENDER} ]]; then
-    return 0
+  local dir="${OUT}/rendered/${name}" spec="--frames ${RENDER_FRAMES} $*" stamp program fresh=1
+  stamp="${dir}/render_options.txt"
+  if [[ -f ${stamp} && $(cat "${stamp}") == "${spec}" ]]; then
+    for program in "${RENDER}" "${WS}"/devel/lib/libvisual_gyro_sim.*; do
+      [[ -e ${program} && ${program} -nt ${stamp} ]] && fresh=0
+    done
+    ((fresh)) && return 0
   fi
   rm -rf "${dir}"
   local t0=${SECONDS}
   if "${RENDER}" --frames "${RENDER_FRAMES}" "$@" --out "${dir}" >"${OUT}/logs/render_${name}.log" 2>&1; then
-    echo "${spec}" >"${dir}/render_options.txt"
+    echo "${spec}" >"${stamp}"
     echo "[score] rendered ${name} in $((SECONDS - t0)) s"
   else
     echo "[score] render_sequence ${name} failed; see ${OUT}/logs/render_${name}.log" >&2
