@@ -100,7 +100,8 @@ RenderedSequence renderSequence(const RenderSettings& settings);
 
 /// The pose of the preset's motion at time t [s] (t = 0: the first frame; negative t before it):
 /// orientation camera -> world (world = the first camera's frame: x right, y down, z forward),
-/// position [m]. The drive presets' path depends on settings.frames and rate_hz.
+/// position [m]. The drive presets' path depends on settings.frames and rate_hz. Throws
+/// std::invalid_argument for settings renderSequence() refuses or a non-finite t.
 void presetPose(const RenderSettings& settings, double t, Eigen::Matrix3d* orientation, Eigen::Vector3d* position);
 
 /// Renders one view of the preset's scene at an arbitrary pose (camera -> world).
