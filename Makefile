@@ -6,7 +6,7 @@ DATA ?=
 METHOD ?= vote
 export CUDA DATA METHOD
 
-.PHONY: all deps build demo test eval calibrate bench sanitize soak fuzz clean settings-files
+.PHONY: all deps build demo test eval calibrate bench score sanitize soak fuzz clean settings-files
 
 all: build
 
@@ -41,6 +41,12 @@ calibrate: build
 
 bench: build
 	@scripts/bench.sh
+
+# One score over the real footage, its hard variants and rendered scenes, every method, estimator
+# seeds 1-3 pooled: out/score/score.md, score.csv, score.png, a last line of JSON. A benchmark, not
+# in CI. SCORE_QUICK=1: one seed, a few frames.
+score: build
+	@scripts/score.sh
 
 # Own workspace (build/.ws-sanitize, CUDA off) with ASan + UBSan; unit tests, rostests, evaluate.
 sanitize: deps

@@ -66,8 +66,9 @@ Rendered shaken(int frames) {
   r.stamps = seq.stamps;
   const vg::RenderSettings settings = r.settings;
   r.orientations = [settings](const std::vector<double>& times) {
-    std::vector<Eigen::Matrix3d> out;
-    vg::trajectoryPoses(settings, times, &out, nullptr);
+    std::vector<Eigen::Matrix3d> out(times.size());
+    Eigen::Vector3d position;
+    for (size_t k = 0; k < times.size(); ++k) vg::presetPose(settings, times[k], &out[k], &position);
     return out;
   };
   return r;

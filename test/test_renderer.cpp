@@ -208,6 +208,84 @@ TEST(Renderer, PresetMotionMatchesItsDescription) {
   }
 }
 
+/// Mean absolute difference of one row of two images [grey levels].
+double rowDifference(const cv::Mat& a, const cv::Mat& b, int row) {
+  return cv::norm(a.row(row), b.row(row), cv::NORM_L1) / a.cols;
+}
+
+TEST(Renderer, GlobalShutterFramesAreViewsFromTheirPose) {
+  RenderSettings settings;
+  settings.preset = RenderPreset::kHandheld;
+  settings.rate_hz = 30.0;
+  settings.frames = 3;
+  settings.noise_sigma = 0.0;  // renderView draws other noise than a sequence's frame
+  settings.setCentredCamera(160, 121, 125.0);
+  ASSERT_EQ(settings.rolling_shutter_s, 0.0);  // the default
+  const RenderedSequence seq = renderSequence(settings);
+  for (size_t k = 0; k < seq.images.size(); ++k) {
+    Eigen::Matrix3d orientation;
+    Eigen::Vector3d position;
+    presetPose(settings, seq.stamps[k], &orientation, &position);
+    EXPECT_LT((orientation - seq.orientations[k]).norm(), 1e-15) << "frame " << k;
+    EXPECT_LT((position - seq.positions[k]).norm(), 1e-15) << "frame " << k;
+    const cv::Mat view = renderView(settings, seq.orientations[k], seq.positions[k]);
+    EXPECT_EQ(cv::norm(seq.images[k], view, cv::NORM_INF), 0.0) << "frame " << k;
+  }
+}
+
+TEST(Renderer, RollingShutterRowsAreSeenFromThePoseAtTheirTime) {
+  RenderSettings settings;
+  settings.preset = RenderPreset::kHandheld;
+  settings.rate_hz = 30.0;
+  settings.frames = 3;
+  settings.noise_sigma = 0.0;
+  settings.setCentredCamera(320, 241, 250.0);  // an odd height: row 120 is the middle row
+  const RenderedSequence global = renderSequence(settings);
+  settings.rolling_shutter_s = 0.028;
+  const RenderedSequence rolling = renderSequence(settings);
+  ASSERT_EQ(rolling.images.size(), 3u);
+  const int last = settings.height - 1, middle = last / 2;
+  for (size_t k = 0; k < rolling.images.size(); ++k) {
+    // Stamps and poses are the middle row's, as with a global shutter.
+    EXPECT_EQ(rolling.stamps[k], global.stamps[k]);
+    EXPECT_LT((rolling.orientations[k] - global.orientations[k]).norm(), 1e-15);
+    const cv::Mat& frame = rolling.images[k];
+    auto viewAt = [&](double t) {
+      Eigen::Matrix3d orientation;
+      Eigen::Vector3d position;
+      presetPose(settings, t, &orientation, &position);
+      return renderView(settings, orientation, position);
+    };
+    const double t = rolling.stamps[k], half = 0.5 * settings.rolling_shutter_s;
+    const cv::Mat top_view = viewAt(t - half), bottom_view = viewAt(t + half);
+    EXPECT_EQ(rowDifference(frame, top_view, 0), 0.0) << "frame " << k;
+    EXPECT_EQ(rowDifference(frame, bottom_view, last), 0.0) << "frame " << k;
+    EXPECT_EQ(rowDifference(frame, global.images[k], middle), 0.0) << "frame " << k;
+    // The camera turns during the read-out: the first and last rows are not the stamp's view's.
+    const double top_moved = rowDifference(frame, global.images[k], 0);
+    const double bottom_moved = rowDifference(frame, global.images[k], last);
+    Eigen::Matrix3d bottom_orientation;
+    Eigen::Vector3d bottom_position;
+    presetPose(settings, t + half, &bottom_orientation, &bottom_position);
+    const double angle_deg = rotationAngleDeg(global.orientations[k].transpose() * bottom_orientation);
+    std::printf("frame %zu: %.3f deg turned in half the read-out; |top - global top| %.2f, |bottom - global "
+                "bottom| %.2f grey levels\n",
+                k, angle_deg, top_moved, bottom_moved);
+    EXPECT_GT(angle_deg, 0.1) << "the hand-held camera turns";
+    EXPECT_GT(top_moved, 2.0) << "frame " << k;
+    EXPECT_GT(bottom_moved, 2.0) << "frame " << k;
+  }
+  // A read-out longer than the frame interval, negative or not finite is refused.
+  for (const double bad : {1.0 / 30.0 + 1e-6, -1e-3, std::nan("")}) {
+    settings.rolling_shutter_s = bad;
+    EXPECT_THROW(renderSequence(settings), std::invalid_argument) << bad;
+  }
+  settings.rolling_shutter_s = 0.0;
+  Eigen::Matrix3d R;
+  Eigen::Vector3d p;
+  EXPECT_THROW(presetPose(settings, std::nan(""), &R, &p), std::invalid_argument);
+}
+
 TEST(Renderer, BadSettingsThrowInvalidArgument) {
   RenderSettings settings;
   EXPECT_FALSE(parsePreset("underwater", &settings.preset));

@@ -47,6 +47,10 @@ struct RenderSettings {
   /// renderView() knows no motion and blurs along +x.
   double blur_px = 0.0;
   int jpeg_quality = 0;        ///< JPEG-compressed and decoded at this quality (1..100); 0 = none
+  /// Rolling shutter: the rows are exposed one after another over this time [s], in [0, 1 / rate_hz].
+  /// Row r (0 = top) is seen from the pose at stamp + (r / (height - 1) - 0.5) * rolling_shutter_s:
+  /// a frame's stamp, and its pose in RenderedSequence, are its middle row's. 0 = global shutter.
+  double rolling_shutter_s = 0.0;
 
   /// Sets the image size [px] and a pinhole camera with fx = fy = `focal` [px] whose principal
   /// point is the image centre ((width - 1) / 2, (height - 1) / 2).
@@ -94,13 +98,11 @@ struct RenderedSequence {
 /// Renders the preset. Throws std::invalid_argument for an unknown preset or bad sizes.
 RenderedSequence renderSequence(const RenderSettings& settings);
 
-/// The camera's pose on the preset's trajectory at each of `times` [s]: what renderSequence samples
-/// at its stamps k / rate_hz, at any time (e.g. to synthesise an IMU). Orientation camera -> world,
-/// position [m] in the world (the first camera's frame); `positions` may be null. The drive and
-/// forward trajectories depend on the sequence's duration (frames, rate_hz), as in renderSequence.
-/// Throws std::invalid_argument for an unknown preset or bad sizes.
-void trajectoryPoses(const RenderSettings& settings, const std::vector<double>& times,
-                     std::vector<Eigen::Matrix3d>* orientations, std::vector<Eigen::Vector3d>* positions);
+/// The pose of the preset's motion at time t [s] (t = 0: the first frame; negative t before it):
+/// orientation camera -> world (world = the first camera's frame: x right, y down, z forward),
+/// position [m]. The drive presets' path depends on settings.frames and rate_hz. Throws
+/// std::invalid_argument for settings renderSequence() refuses or a non-finite t.
+void presetPose(const RenderSettings& settings, double t, Eigen::Matrix3d* orientation, Eigen::Vector3d* position);
 
 /// Renders one view of the preset's scene at an arbitrary pose (camera -> world).
 cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orientation,

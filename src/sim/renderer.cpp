@@ -675,6 +675,8 @@ void validate(const RenderSettings& s) {
     throw std::invalid_argument("renderer: focal lengths must be finite and positive");
   if (!(std::isfinite(s.cx) && std::isfinite(s.cy))) throw std::invalid_argument("renderer: non-finite principal point");
   if (!(std::isfinite(s.rate_hz) && s.rate_hz > 0)) throw std::invalid_argument("renderer: rate must be positive");
+  if (!(std::isfinite(s.rolling_shutter_s) && s.rolling_shutter_s >= 0 && s.rolling_shutter_s <= 1.0 / s.rate_hz))
+    throw std::invalid_argument("renderer: rolling shutter read-out time must be in [0, 1 / rate] s");
   checkDegradation(degradationOf(s, Eigen::Vector2d::UnitX()), "renderer");
 }
 
@@ -725,17 +727,24 @@ std::vector<Eigen::Vector3d> clipNear(const std::vector<Eigen::Vector3d>& poly, 
   return out;
 }
 
-cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Matrix3d& orientation,
-                    const Eigen::Vector3d& position, uint64_t noise_seed,
-                    const Eigen::Vector2d& blur_direction) {
-  const int sw = s.width * kSamples, sh = s.height * kSamples;
-  // Sample (i, j) sits at pixel (u, v) = ((i + 0.5) / 2 - 0.5, (j + 0.5) / 2 - 0.5); its ray in
-  // the camera frame is d = ((u - cx) / fx, (v - cy) / fy, 1), so t along d is the depth.
-  const double ax = 1.0 / (kSamples * s.fx), bx = ((0.5 / kSamples - 0.5) - s.cx) / s.fx;
-  const double ay = 1.0 / (kSamples * s.fy), by = ((0.5 / kSamples - 0.5) - s.cy) / s.fy;
+/// Rays of the supersamples: sample (i, j) sits at pixel (u, v) = ((i + 0.5) / 2 - 0.5,
+/// (j + 0.5) / 2 - 0.5); its ray in the camera frame is d = (ax i + bx, ay j + by, 1), so t along d
+/// is the depth.
+struct SampleRays {
+  double ax, bx, ay, by;
+  explicit SampleRays(const RenderSettings& s)
+      : ax(1.0 / (kSamples * s.fx)), bx(((0.5 / kSamples - 0.5) - s.cx) / s.fx),
+        ay(1.0 / (kSamples * s.fy)), by(((0.5 / kSamples - 0.5) - s.cy) / s.fy) {}
+};
+
+/// The planes seen from one pose (camera -> world) within the sample rows [j_begin, j_end).
+std::vector<PlaneView> planeViews(const Scene& scene, const RenderSettings& s, const SampleRays& rays,
+                                  const Eigen::Matrix3d& orientation, const Eigen::Vector3d& position, int j_begin,
+                                  int j_end) {
+  const double ax = rays.ax, bx = rays.bx, ay = rays.ay, by = rays.by;
+  const int sw = s.width * kSamples;
   const double focal = std::sqrt(s.fx * s.fy);
   const Eigen::Matrix3d Rt = orientation.transpose();
-
   std::vector<PlaneView> views;
   views.reserve(scene.planes.size());
   for (const Plane& p : scene.planes) {
@@ -754,8 +763,8 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
     PlaneView pv;
     pv.i0 = static_cast<int>(std::max(0.0, std::floor(imin) - 1));
     pv.i1 = static_cast<int>(std::min(sw - 1.0, std::ceil(imax) + 1));
-    pv.j0 = static_cast<int>(std::max(0.0, std::floor(jmin) - 1));
-    pv.j1 = static_cast<int>(std::min(sh - 1.0, std::ceil(jmax) + 1));
+    pv.j0 = static_cast<int>(std::max(static_cast<double>(j_begin), std::floor(jmin) - 1));
+    pv.j1 = static_cast<int>(std::min(j_end - 1.0, std::ceil(jmax) + 1));
     if (pv.i0 > pv.i1 || pv.j0 > pv.j1) continue;
     pv.numer = numer;
     pv.ni = n.x() * ax, pv.nj = n.y() * ay, pv.n0 = n.x() * bx + n.y() * by + n.z();
@@ -768,16 +777,29 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
     pv.gain = p.gain;
     views.push_back(pv);
   }
+  return views;
+}
+
+/// Adds the grey levels (before any degradation) of the pixel rows [row_begin, row_end), seen from
+/// one pose (camera -> world), to `acc` (CV_32F, the whole image, zero there).
+void shadeRows(const Scene& scene, const RenderSettings& s, const Eigen::Matrix3d& orientation,
+               const Eigen::Vector3d& position, int row_begin, int row_end, cv::Mat* acc) {
+  const int sw = s.width * kSamples;
+  const int j_begin = row_begin * kSamples, j_end = row_end * kSamples;  // sample rows
+  const SampleRays rays(s);
+  const double ax = rays.ax, bx = rays.bx, ay = rays.ay, by = rays.by;
+  const std::vector<PlaneView> views = planeViews(scene, s, rays, orientation, position, j_begin, j_end);
 
   // Pass 1: nearest hit per sample.
-  std::vector<float> depth(static_cast<size_t>(sw) * sh, std::numeric_limits<float>::infinity());
-  std::vector<int32_t> hit(static_cast<size_t>(sw) * sh, -1);
+  const size_t band = static_cast<size_t>(sw) * (j_end - j_begin);
+  std::vector<float> depth(band, std::numeric_limits<float>::infinity());
+  std::vector<int32_t> hit(band, -1);
   for (size_t k = 0; k < views.size(); ++k) {
     const PlaneView& pv = views[k];
     for (int j = pv.j0; j <= pv.j1; ++j) {
       const double dn = pv.nj * j + pv.n0, du = pv.uj * j + pv.u0, dv = pv.vj * j + pv.v0;
-      float* depth_row = depth.data() + static_cast<size_t>(j) * sw;
-      int32_t* hit_row = hit.data() + static_cast<size_t>(j) * sw;
+      float* depth_row = depth.data() + static_cast<size_t>(j - j_begin) * sw;
+      int32_t* hit_row = hit.data() + static_cast<size_t>(j - j_begin) * sw;
       for (int i = pv.i0; i <= pv.i1; ++i) {
         const double t = pv.numer / (dn + pv.ni * i);
         if (!(t > kNearDepth) || t >= depth_row[i]) continue;
@@ -792,12 +814,11 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
   }
 
   // Pass 2: shade and box-filter the samples into pixels.
-  cv::Mat acc(s.height, s.width, CV_32F, cv::Scalar(0));
   const float weight = 1.0f / (kSamples * kSamples);
-  for (int j = 0; j < sh; ++j) {
-    float* acc_row = acc.ptr<float>(j / kSamples);
-    const int32_t* hit_row = hit.data() + static_cast<size_t>(j) * sw;
-    const float* depth_row = depth.data() + static_cast<size_t>(j) * sw;
+  for (int j = j_begin; j < j_end; ++j) {
+    float* acc_row = acc->ptr<float>(j / kSamples);
+    const int32_t* hit_row = hit.data() + static_cast<size_t>(j - j_begin) * sw;
+    const float* depth_row = depth.data() + static_cast<size_t>(j - j_begin) * sw;
     const double dy = ay * j + by;
     for (int i = 0; i < sw; ++i) {
       const double dx = ax * i + bx;
@@ -826,7 +847,36 @@ cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Ma
       acc_row[i / kSamples] += weight * value;
     }
   }
+}
 
+/// One view from one pose, degraded.
+cv::Mat renderScene(const Scene& scene, const RenderSettings& s, const Eigen::Matrix3d& orientation,
+                    const Eigen::Vector3d& position, uint64_t noise_seed, const Eigen::Vector2d& blur_direction) {
+  cv::Mat acc(s.height, s.width, CV_32F, cv::Scalar(0));
+  shadeRows(scene, s, orientation, position, 0, s.height, &acc);
+  return degradeImage(acc, degradationOf(s, blur_direction), noise_seed);
+}
+
+/// Time of pixel row `row` relative to the frame's stamp [s] (the middle row's time).
+double rowTimeOffset(const RenderSettings& s, int row) {
+  return (static_cast<double>(row) / (s.height - 1) - 0.5) * s.rolling_shutter_s;
+}
+
+/// The frame stamped `t`: one pose for the whole image (global shutter), or each pixel row from the
+/// pose at its own time (rolling shutter), then degraded once, as a sensor's read-out would be.
+cv::Mat renderFrame(const Scene& scene, const RenderSettings& s, const Trajectory& trajectory, double t,
+                    uint64_t noise_seed, const Eigen::Vector2d& blur_direction) {
+  Eigen::Matrix3d orientation;
+  Eigen::Vector3d position;
+  if (s.rolling_shutter_s == 0.0) {
+    trajectory.pose(t, &orientation, &position);
+    return renderScene(scene, s, orientation, position, noise_seed, blur_direction);
+  }
+  cv::Mat acc(s.height, s.width, CV_32F, cv::Scalar(0));
+  for (int row = 0; row < s.height; ++row) {
+    trajectory.pose(t + rowTimeOffset(s, row), &orientation, &position);
+    shadeRows(scene, s, orientation, position, row, row + 1, &acc);
+  }
   return degradeImage(acc, degradationOf(s, blur_direction), noise_seed);
 }
 
@@ -939,7 +989,7 @@ RenderedSequence renderSequence(const RenderSettings& settings) {
     Eigen::Matrix3d orientation;
     Eigen::Vector3d position;
     trajectory.pose(t, &orientation, &position);
-    out.images.push_back(renderScene(*scene, settings, orientation, position, mixSeed(settings.seed, 1000 + k),
+    out.images.push_back(renderFrame(*scene, settings, trajectory, t, mixSeed(settings.seed, 1000 + k),
                                      imageMotionDirection(trajectory, settings, t)));
     out.orientations.push_back(orientation);
     out.positions.push_back(position);
@@ -948,19 +998,11 @@ RenderedSequence renderSequence(const RenderSettings& settings) {
   return out;
 }
 
-void trajectoryPoses(const RenderSettings& settings, const std::vector<double>& times,
-                     std::vector<Eigen::Matrix3d>* orientations, std::vector<Eigen::Vector3d>* positions) {
+void presetPose(const RenderSettings& settings, double t, Eigen::Matrix3d* orientation, Eigen::Vector3d* position) {
   validate(settings);
+  if (!std::isfinite(t)) throw std::invalid_argument("presetPose: non-finite time");
   const Trajectory trajectory(settings.preset, (settings.frames - 1) / settings.rate_hz);
-  orientations->clear();
-  if (positions != nullptr) positions->clear();
-  for (const double t : times) {
-    Eigen::Matrix3d orientation;
-    Eigen::Vector3d position;
-    trajectory.pose(t, &orientation, &position);
-    orientations->push_back(orientation);
-    if (positions != nullptr) positions->push_back(position);
-  }
+  trajectory.pose(t, orientation, position);
 }
 
 cv::Mat renderView(const RenderSettings& settings, const Eigen::Matrix3d& orientation,

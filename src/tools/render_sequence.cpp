@@ -15,7 +15,7 @@ namespace {
 using cli::UsageError;
 
 const char* const kUsage =
-    "usage: render_sequence --preset drive|handheld|forward|dim|drone_near --out DIR [options]\n"
+    "usage: render_sequence --preset drive|handheld|forward|dim|drone_near|handheld_rs --out DIR [options]\n"
     "  --out DIR       output folder (KITTI layout; --output is accepted too)\n"
     "  --frames N      number of frames (default 60)\n"
     "  --width W       image width [px] (default 640)\n"
@@ -27,22 +27,50 @@ const char* const kUsage =
     "  --contrast F    scale grey levels about the image mean by F (default 1)\n"
     "  --blur PX       motion blur of PX pixels along the image motion (default 0)\n"
     "  --jpeg Q        JPEG-compress every image at quality Q, 1..100 (default: none)\n"
+    "  --rolling-shutter-ms T  rows exposed one after another over T ms, row r at\n"
+    "                  stamp + (r / (H - 1) - 0.5) T: the stamp and pose of a frame are its middle\n"
+    "                  row's (default 0: global shutter; handheld_rs: 28)\n"
     "Presets: drive = car at 10 m/s with a right and a left turn (up to 30 deg/s); handheld =\n"
     "rotation about all axes (up to ~40 deg/s) in a room, mm jitter; forward = straight drive;\n"
-    "dim = the handheld motion in a dim room of plain walls, doors and boxes (30 grey levels).\n"
+    "dim = the handheld motion in a dim room of plain walls, doors and boxes (30 grey levels);\n"
+    "drone_near = a drone shaken by hand 1-2 m from boxes and walls (20 Hz); handheld_rs =\n"
+    "handheld with a phone-like rolling shutter (28 ms read-out at 30 Hz).\n"
     "Poses are camera -> first camera (x right, y down, z forward), positions in metres.\n";
+
+/// A preset of the renderer seen through a rolling shutter.
+struct RollingShutterPreset {
+  const char* name;
+  RenderPreset preset;
+  double read_out_ms;  ///< rolling_shutter_s in ms
+};
+/// A phone filmed by hand: 30 Hz frames read out over 28 ms (phone sensors take about 20-33 ms).
+constexpr RollingShutterPreset kRollingShutterPresets[] = {{"handheld_rs", RenderPreset::kHandheld, 28.0}};
+
+/// Reads a preset name, the renderer's or a rolling-shutter one (which sets *read_out_ms).
+bool parseAnyPreset(const std::string& name, RenderPreset* preset, double* read_out_ms) {
+  for (const auto& p : kRollingShutterPresets) {
+    if (name == p.name) {
+      *preset = p.preset;
+      *read_out_ms = p.read_out_ms;
+      return true;
+    }
+  }
+  return parsePreset(name, preset);
+}
 
 int run(int argc, char** argv) {
   RenderSettings settings;
-  std::string out;
-  bool preset_given = false, rate_given = false;
+  std::string out, preset_name;
+  bool preset_given = false, rate_given = false, shutter_given = false;
+  double preset_read_out_ms = 0.0, read_out_ms = 0.0;
   for (cli::Arguments args(argc, argv); args.next();) {
     if (args.is("--help") || args.is("-h")) {
       std::cout << kUsage;
       return 0;
     } else if (args.is("--preset")) {
-      const std::string name = args.value();
-      if (!parsePreset(name, &settings.preset)) throw UsageError("unknown preset '" + name + "'");
+      preset_name = args.value();
+      if (!parseAnyPreset(preset_name, &settings.preset, &preset_read_out_ms))
+        throw UsageError("unknown preset '" + preset_name + "'");
       preset_given = true;
     } else if (args.is("--out") || args.is("--output")) {
       out = args.value();
@@ -65,6 +93,9 @@ int run(int argc, char** argv) {
       settings.blur_px = args.doubleValue(0.0, 200.0);
     } else if (args.is("--jpeg")) {
       settings.jpeg_quality = static_cast<int>(args.intValue(1, 100));
+    } else if (args.is("--rolling-shutter-ms")) {
+      read_out_ms = args.doubleValue(0.0, 1e9);
+      shutter_given = true;
     } else if (args.is("--seed")) {
       settings.seed = static_cast<uint64_t>(args.intValue(0, 9223372036854775807LL));
     } else {
@@ -74,6 +105,7 @@ int run(int argc, char** argv) {
   if (!preset_given) throw UsageError("--preset is required");
   if (out.empty()) throw UsageError("--out is required");
   if (!rate_given) settings.rate_hz = presetRateHz(settings.preset);
+  settings.rolling_shutter_s = 1e-3 * (shutter_given ? read_out_ms : preset_read_out_ms);
   settings.setCentredCamera(settings.width, settings.height, settings.fx);
 
   RenderedSequence sequence;
@@ -96,9 +128,9 @@ int run(int argc, char** argv) {
     yaw_deg += yawPitchRollFromRotation(R)[0] * kRadToDeg;
     path_m += (sequence.positions[k] - sequence.positions[k - 1]).norm();
   }
-  std::printf("render_sequence: preset %s, %d frames %dx%d at %.3g Hz, f = %.1f px -> %s\n",
-              presetName(settings.preset), settings.frames, settings.width, settings.height, settings.rate_hz,
-              settings.fx, out.c_str());
+  std::printf("render_sequence: preset %s, %d frames %dx%d at %.3g Hz, f = %.1f px, rolling shutter %.3g ms -> %s\n",
+              preset_name.c_str(), settings.frames, settings.width, settings.height, settings.rate_hz, settings.fx,
+              1e3 * settings.rolling_shutter_s, out.c_str());
   std::printf("  total rotation %.2f deg (max %.3f deg/frame, net yaw %+.2f deg), path length %.2f m, "
               "%.1f ms/frame (including scene set-up)\n",
               total_deg, max_deg, yaw_deg, path_m, render_ms / settings.frames);

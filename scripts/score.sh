@@ -1,0 +1,151 @@
+#!/usr/bin/env bash
+# `make score`: one score over all the real footage and its hard variants. Every method of
+# `evaluate --list-methods`, on the same matches per run, on: the shared real sequences present;
+# their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches); and
+# rendered scenes (near structure, a dim blurred room, a blurred 1280 x 720 room, a hand-held room,
+# the same through a phone-like rolling shutter). Each case runs with estimator seeds 1-3; the
+# per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
+# last line of JSON (also out/score/score.json).
+#
+# Kept to about 15 minutes on two cores by frame limits: at most SCORE_FRAMES pairs per case (default
+# 30: the first 30 pairs of every real sequence and variant), renders of SCORE_RENDER_FRAMES frames
+# (default 31, so 30 pairs). Renders are made once into out/score/rendered and reused
+# while the render command and the render_sequence program are unchanged.
+# SCORE_QUICK=1: a smoke run (one seed, 6 pairs per case, 8-frame renders).
+# SCORE_SEEDS, SCORE_FRAMES, SCORE_RENDER_FRAMES, SCORE_BACKEND (cpu; auto uses CUDA where it
+# works), SCORE_OUT override.
+set -euo pipefail
+source "$(dirname "$0")/env.sh"
+
+OUT="${SCORE_OUT:-${REPO_DIR}/out/score}"
+BACKEND="${SCORE_BACKEND:-cpu}"
+if [[ ${SCORE_QUICK:-0} == 1 ]]; then
+  SEEDS="${SCORE_SEEDS:-1}"
+  FRAMES="${SCORE_FRAMES:-6}"
+  RENDER_FRAMES="${SCORE_RENDER_FRAMES:-8}"
+else
+  SEEDS="${SCORE_SEEDS:-1 2 3}"
+  FRAMES="${SCORE_FRAMES:-30}"
+  RENDER_FRAMES="${SCORE_RENDER_FRAMES:-31}"
+fi
+EVAL="${BIN}/evaluate"
+RENDER="${BIN}/render_sequence"
+PY=/usr/bin/python3
+
+for tool in "${EVAL}" "${RENDER}"; do
+  if [[ ! -x ${tool} ]]; then
+    echo "[score] ${tool} not built (run make build)" >&2
+    exit 1
+  fi
+done
+if ! "${PY}" -c 'import matplotlib, numpy' 2>/dev/null; then
+  echo "[score] ${PY} lacks matplotlib/numpy (Debian: python3-matplotlib python3-numpy; make deps installs them)" >&2
+  exit 1
+fi
+
+METHODS="$("${EVAL}" --list-methods)"
+mkdir -p "${OUT}/logs" "${OUT}/csv" "${OUT}/rendered"
+rm -f "${OUT}"/csv/*.csv "${OUT}"/logs/eval_*.log
+MANIFEST="${OUT}/manifest.tsv"
+: >"${MANIFEST}"
+start_all=${SECONDS}
+echo "[score] methods ${METHODS}; seeds ${SEEDS}; at most ${FRAMES} pairs per case; backend ${BACKEND}; out ${OUT}"
+
+# render <name> <render_sequence options...>: renders into rendered/<name> unless a render with the
+# same options, newer than the program and the renderer's library, is there already.
+render() {
+  local name=$1
+  shift
+  local dir="${OUT}/rendered/${name}" spec="--frames ${RENDER_FRAMES} $*" stamp program fresh=1
+  stamp="${dir}/render_options.txt"
+  if [[ -f ${stamp} && $(cat "${stamp}") == "${spec}" ]]; then
+    for program in "${RENDER}" "${WS}"/devel/lib/libvisual_gyro_sim.*; do
+      [[ -e ${program} && ${program} -nt ${stamp} ]] && fresh=0
+    done
+    ((fresh)) && return 0
+  fi
+  rm -rf "${dir}"
+  local t0=${SECONDS}
+  if "${RENDER}" --frames "${RENDER_FRAMES}" "$@" --out "${dir}" >"${OUT}/logs/render_${name}.log" 2>&1; then
+    echo "${spec}" >"${stamp}"
+    echo "[score] rendered ${name} in $((SECONDS - t0)) s"
+  else
+    echo "[score] render_sequence ${name} failed; see ${OUT}/logs/render_${name}.log" >&2
+    rm -rf "${dir}"
+  fi
+}
+
+# run_case <case> <folder> <description> [evaluate options...]: every method, once per seed.
+run_case() {
+  local case=$1 folder=$2 description=$3
+  shift 3
+  if [[ ! -d ${folder} ]]; then
+    echo "[score] skipping ${case}: ${folder} not present"
+    return 0
+  fi
+  local t0=${SECONDS} seed
+  for seed in ${SEEDS}; do
+    local csv="${OUT}/csv/${case}_seed${seed}.csv" log="${OUT}/logs/eval_${case}_seed${seed}.log"
+    if "${EVAL}" "${folder}" --method "${METHODS}" --backend "${BACKEND}" --quiet --frames "${FRAMES}" \
+        --seed "${seed}" --csv "${csv}" "$@" >"${log}" 2>&1; then
+      printf '%s\t%s\t%s\t%s\t%s\n' "${case}" "${seed}" "${csv}" "${log}" "${description}" >>"${MANIFEST}"
+    else
+      echo "[score] evaluate failed on ${case} seed ${seed}; see ${log}" >&2
+      tail -3 "${log}" >&2
+    fi
+  done
+  echo "[score] ${case}: $((SECONDS - t0)) s"
+}
+
+# 1. Renders (reused between runs).
+render drone_near --preset drone_near
+render dim_blur3_jpeg75 --preset dim --blur 3 --jpeg 75
+render dim_blur15_720p --preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900
+render handheld --preset handheld
+render handheld_rs --preset handheld_rs
+
+# 2. The shared real sequences at their own rate.
+for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake; do
+  run_case "${name}" "${DATA_DIR}/${name}" "${name}, every pair at the camera's rate"
+done
+
+# 3. Dim, noisy, JPEG-compressed real footage (the noise drawn from the seed).
+shake="${DATA_DIR}/euroc_mh01_shake"
+run_case mh01_contrast0.08 "${shake}" "euroc_mh01_shake, contrast 0.08, noise 3, JPEG 75" \
+  --contrast 0.08 --noise 3 --jpeg 75
+run_case mh01_contrast0.05 "${shake}" "euroc_mh01_shake, contrast 0.05, noise 3, JPEG 75" \
+  --contrast 0.05 --noise 3 --jpeg 75
+run_case kitti_turn_contrast0.05 "${DATA_DIR}/kitti_turn" "kitti_turn, contrast 0.05, noise 3, JPEG 75" \
+  --contrast 0.05 --noise 3 --jpeg 75
+
+# 4. Pairs K frames apart near structure (K times the motion and parallax of a pair).
+for stride in 2 3 4 5; do
+  run_case "mh01_stride${stride}" "${shake}" "euroc_mh01_shake, image k paired with image k-${stride}" \
+    --stride "${stride}"
+done
+
+# 5. Wrong pairings injected among the matches before any method runs.
+for fraction in 0.5 0.7; do
+  run_case "mh01_outliers${fraction}" "${shake}" "euroc_mh01_shake, ${fraction/0./}0 % of the matches wrong" \
+    --outliers "${fraction}"
+done
+
+# 6. Rendered scenes (exact truth).
+run_case drone_near "${OUT}/rendered/drone_near" "rendered drone_near: shaken 1-2 m from boxes, 20 Hz"
+run_case dim_blur3_jpeg75 "${OUT}/rendered/dim_blur3_jpeg75" "rendered dim room, 3 px motion blur, JPEG 75, 30 Hz"
+run_case dim_blur15_720p "${OUT}/rendered/dim_blur15_720p" \
+  "rendered dim room at 1280 x 720 (f = 900 px), 15 px motion blur, JPEG 60, 30 Hz"
+run_case handheld "${OUT}/rendered/handheld" "rendered hand-held room, 30 Hz"
+run_case handheld_rs "${OUT}/rendered/handheld_rs" \
+  "rendered hand-held room through a rolling shutter (28 ms read-out; stamps and poses the middle row's), 30 Hz"
+
+# 7. Summary.
+machine="$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -1), $(nproc) cores"
+date_utc="$(date -u '+%Y-%m-%d %H:%M UTC')"
+elapsed=$((SECONDS - start_all))
+"${PY}" "${REPO_DIR}/scripts/score.py" --manifest "${MANIFEST}" --out "${OUT}" --machine "${machine}" \
+  --date "${date_utc}" --note "At most ${FRAMES} pairs per case (renders: ${RENDER_FRAMES} frames); backend ${BACKEND}; \
+evaluation and renders took ${elapsed} s." >"${OUT}/summary.log" 2>&1 ||
+  { cat "${OUT}/summary.log" >&2; exit 1; }
+echo "[score] machine: ${machine}; total $((SECONDS - start_all)) s; files in ${OUT} (score.md, score.csv, score.png)"
+tail -1 "${OUT}/summary.log"
