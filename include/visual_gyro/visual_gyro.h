@@ -35,8 +35,8 @@ struct FrameTimes {
 /// What the pipeline produced for one image.
 struct FrameResult {
   /// kValid when the frame has an estimate; otherwise why not (see frame_status.h). Skipped
-  /// statuses (frameSkipped) leave the pipeline's state untouched; kFrozenImage keeps the previous
-  /// image and its stamp.
+  /// statuses (frameSkipped) leave the pipeline's state untouched; kFrozenImage and kNoTexture keep
+  /// the previous image and its stamp.
   FrameStatus status = FrameStatus::kNotEstimated;
   std::string reason;  ///< details for people ("" when valid)
   /// True when status is kValid: rotation and angular_velocity hold an estimate.
@@ -108,6 +108,13 @@ std::string validateVisualGyroSettings(const VisualGyroSettings& settings);
 std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt,
                                const VisualGyroSettings& settings);
 
+/// Grey-level standard deviation [grey levels] below which an image has no texture (FrameStatus::
+/// kNoTexture): all-black and all-white (clipped) images have 0; the least textured images the
+/// pipeline still estimates have more: kitti_turn's frames dimmed to 5 % contrast 3.1, the
+/// renderer's dim room 6. A flat image with sensor noise passes this check (its noise is its
+/// standard deviation) and is then caught by having no corner, or gives too few matches.
+constexpr double kMinTextureStdDev = 1.0;
+
 /// Smallest image side the front end can describe a keypoint in: the BRIEF patch plus the
 /// detector's border on both sides [px].
 constexpr int kMinImageSide = 2 * (kBriefHalfPatch + 1) + 1;
@@ -123,9 +130,10 @@ class VisualGyro {
 
   /// Processes the next image (CV_8UC1; stamp in seconds). Never throws for bad images: returns a
   /// FrameResult whose status says why there is no estimate. A stamp not after the previous one, or
-  /// less than min_dt after it, is rejected without touching the state (skipped); an image
-  /// identical to the previous one is flagged frozen; an estimated rate above max_rate_dps is
-  /// invalid.
+  /// less than min_dt after it, is rejected without touching the state (skipped); an image without
+  /// texture (grey-level standard deviation below kMinTextureStdDev, or no corner found) is
+  /// flagged kNoTexture, one identical to the previous one frozen (both keep the previous image);
+  /// an estimated rate above max_rate_dps is invalid.
   FrameResult processFrame(const cv::Mat& gray, double stamp);
 
   /// Forgets the previous frame (after a time jump or a camera change).

@@ -191,6 +191,18 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     return reject(FrameStatus::kTimeStepTooSmall, "time step " + formatNumber(result.dt) + " s below min_dt (" +
                                                       formatNumber(settings_.min_dt) + " s): frame skipped");
   }
+  // Checked before the frozen camera: a uniform image (lens cap, darkness, overexposure) is
+  // identical to the next one too, though the camera is not what fails.
+  cv::Scalar grey_mean, grey_stddev;
+  cv::meanStdDev(gray, grey_mean, grey_stddev);
+  if (grey_stddev[0] < kMinTextureStdDev) {
+    if (has_previous_) result.dt = stamp - previous_stamp_;
+    std::ostringstream why;
+    why.precision(3);
+    why << "image has no texture (grey levels " << grey_mean[0] << " +- " << grey_stddev[0]
+        << "): lens cap, darkness or overexposure?";
+    return reject(FrameStatus::kNoTexture, why.str());
+  }
   if (has_previous_ && bitIdentical(gray, previous_gray_)) {
     // A driver repeating its last frame with a new stamp would otherwise read as "no rotation"
     // while the camera may be turning. The previous image keeps its stamp: it is when that
@@ -215,6 +227,11 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
   }
   result.features = static_cast<int>(features.keypoints.size());
+  if (features.keypoints.empty()) {
+    // Like a uniform image: nothing to pair with, so the previous image stays.
+    if (has_previous_) result.dt = stamp - previous_stamp_;
+    return reject(FrameStatus::kNoTexture, "image has no texture: no corner found");
+  }
   std::vector<Eigen::Vector3d>& bearings = bearings_;
   bearings.resize(features.keypoints.size());
   for (size_t i = 0; i < bearings.size(); ++i)

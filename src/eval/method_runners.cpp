@@ -86,18 +86,17 @@ class BaselineRunner : public MethodRunner {
   Eigen::Matrix3d initial_ = Eigen::Matrix3d::Identity();
 };
 
-/// Applies the pipeline's plausibility rules to a method: no estimate on a frozen image, and a
-/// rate above max_rate_dps is invalid, exactly as VisualGyro reports them.
+/// Applies the pipeline's plausibility rules to a method: no estimate on a frozen or textureless
+/// image, and a rate above max_rate_dps is invalid, exactly as VisualGyro reports them.
 class PlausibilityRunner : public MethodRunner {
  public:
   PlausibilityRunner(std::unique_ptr<MethodRunner> inner, const VisualGyroSettings& settings)
       : inner_(std::move(inner)), settings_(settings) {}
 
   MethodEstimate run(const FramePair& pair) override {
-    if (pair.frozen) {
+    if (!pair.unusable_image.empty()) {
       MethodEstimate out;
-      out.error = std::string(frameStatusName(FrameStatus::kFrozenImage)) +
-                  ": image identical to the previous one (camera frozen?)";
+      out.error = pair.unusable_image;
       return out;
     }
     MethodEstimate out = inner_->run(pair);

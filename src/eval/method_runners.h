@@ -61,7 +61,7 @@ std::string methodProblem(const std::string& method);
 /// The runner of `method` (isOwnMethod: a RotationEstimator with `estimator`'s settings and this
 /// method, told whether the matches' positions are refined (RotationEstimator::setRefinedPositions);
 /// else the baseline), wrapped so that it follows the pipeline's plausibility rules (no estimate on
-/// a frozen image; a rate above max_rate_dps is invalid) exactly as VisualGyro does.
+/// a frozen or textureless image; a rate above max_rate_dps is invalid) exactly as VisualGyro does.
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
                                          const BaselineSettings& baseline, bool refined_positions);
 

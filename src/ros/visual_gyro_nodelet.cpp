@@ -294,10 +294,12 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     }
     return;
   }
-  if (result.status == FrameStatus::kFrozenImage) {
+  if (result.status == FrameStatus::kFrozenImage || result.status == FrameStatus::kNoTexture) {
     NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.reason.c_str());
+    if (result.status == FrameStatus::kNoTexture) health_.noTexture(result.reason);
   } else {
-    // A frozen image leaves the previous one (and its stamp) in the pipeline; so does the node.
+    // A frozen or textureless image leaves the previous one (and its stamp) in the pipeline; so
+    // does the node.
     have_previous_ = true;
     previous_stamp_ = stamp;
   }
@@ -384,6 +386,7 @@ void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
   {
     std::lock_guard<std::mutex> lock(config_mutex_);
     context.method = have_config_ ? config_.method : std::string();
+    context.max_gap = have_config_ ? config_.max_gap : 0.0;
   }
   const std::pair<uint64_t, uint64_t> probed = probe_->take();
   health_.probedInput(probed.first, probed.second);
