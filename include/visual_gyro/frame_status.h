@@ -26,6 +26,9 @@ enum class FrameStatus {
   kFlatHistogram,     ///< the winning bin or cell has fewer than min_votes votes
   kTooFewInliers,     ///< the result explains fewer than min_inlier_ratio of the matches
   kImplausibleRate,   ///< the rate exceeds max_rate_dps
+  /// The camera model does not fit the images: the residuals of neighbouring matches have agreed
+  /// over the last frames (CalibrationFitMonitor); every estimate is invalid until they do not.
+  kCalibrationMismatch,
   kEstimatorFailed,   ///< the backend failed mid-stream (e.g. a lost GPU)
 };
 

@@ -2,6 +2,7 @@
 // ROS-free; the nodelet (src/ros/) and the evaluation command both drive it.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/camera_model.h"
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/frame_status.h"
@@ -63,6 +65,10 @@ struct FrameResult {
   /// one is not, or as many inliers or more and a smaller covariance). Their pixels are
   /// full-resolution coordinates all the same.
   bool half_resolution = false;
+  /// Correlation of the estimate's residuals between neighbouring matches (ResidualCorrelation;
+  /// vote method, NaN otherwise or when too few matches): near 0 when the camera model fits the
+  /// images. Over the last kFitWindowFrames frames it decides kCalibrationMismatch.
+  double residual_correlation = std::numeric_limits<double>::quiet_NaN();
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
@@ -133,13 +139,17 @@ class VisualGyro {
   /// less than min_dt after it, is rejected without touching the state (skipped); an image without
   /// texture (grey-level standard deviation below kMinTextureStdDev, or no corner found) is
   /// flagged kNoTexture, one identical to the previous one frozen (both keep the previous image);
-  /// an estimated rate above max_rate_dps is invalid.
+  /// an estimated rate above max_rate_dps is invalid; so is every estimate while the calibration
+  /// does not fit the images (kCalibrationMismatch: CalibrationFitMonitor over the vote method's
+  /// estimates; the rotation still serves as the next frame's prior).
   FrameResult processFrame(const cv::Mat& gray, double stamp);
 
-  /// Forgets the previous frame (after a time jump or a camera change).
+  /// Forgets the previous frame (after a time jump or a camera change). The calibration check's
+  /// recent frames stay: the camera is the same.
   void reset();
-  /// Changes intrinsics (camera_info changed); resets. Throws std::invalid_argument when unusable
-  /// (validate() or calibrationProblem() names a problem).
+  /// Changes intrinsics (camera_info changed); resets, and the calibration check starts afresh.
+  /// Throws std::invalid_argument when unusable (validate() or calibrationProblem() names a
+  /// problem).
   void setCamera(const CameraModel& camera);
   /// Changes settings live; the backend stays.
   void setSettings(const VisualGyroSettings& settings);
@@ -171,6 +181,9 @@ class VisualGyro {
   /// Records how far the matches of `result` lie from where its estimated rotation alone puts
   /// them (search_parallax_rad_; 0 without an estimate).
   void updateSearchParallax(const FrameResult& result);
+  /// Judges the calibration by the valid vote-method estimate in `result` (its
+  /// residual_correlation), and invalidates the estimate while the calibration does not fit.
+  void checkCalibrationFit(FrameResult* result);
 
   CameraModel camera_;
   VisualGyroSettings settings_;
@@ -189,6 +202,8 @@ class VisualGyro {
   /// search too.
   double search_parallax_rad_ = 0.0;
   std::vector<double> parallax_scratch_;  // per-match parallax, reused
+  ResidualCorrelation residual_correlation_;
+  CalibrationFitMonitor calibration_fit_;
   std::string matching_;  // how the last frame was matched (FrameResult::matching)
   // Per-frame buffers, reused (swapped with the previous frame's) so that the steady state does not
   // allocate in the front end.

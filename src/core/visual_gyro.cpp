@@ -142,6 +142,7 @@ void VisualGyro::reset() {
 void VisualGyro::setCamera(const CameraModel& camera) {
   checkCamera(camera);
   camera_ = camera;
+  calibration_fit_.reset();
   reset();
 }
 
@@ -286,6 +287,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
       prior_.update(result.rotation, dt);
       updatePriorUncertainty(prior, result.rotation);
       updateSearchParallax(result);
+      checkCalibrationFit(&result);
       result.status = result.rotation.status;
       result.reason = result.rotation.reason;
       if (result.hasEstimate()) {
@@ -494,6 +496,18 @@ void VisualGyro::updateSearchParallax(const FrameResult& result) {
   const auto median = parallax_scratch_.begin() + static_cast<std::ptrdiff_t>(n / 2);
   std::nth_element(parallax_scratch_.begin(), median, parallax_scratch_.end());
   if (std::isfinite(*median)) search_parallax_rad_ = kParallaxCover * *median;
+}
+
+void VisualGyro::checkCalibrationFit(FrameResult* result) {
+  RotationResult& rotation = result->rotation;
+  // The paper method models no translation: a moving camera's parallax, shared by neighbours,
+  // would read as a calibration error.
+  if (!rotation.valid() || settings_.estimator.method != EstimationMethod::kVote) return;
+  result->residual_correlation = residual_correlation_.compute(
+      result->previous_bearings, result->current_bearings, rotation.rotation, rotation.translation,
+      1.0 / camera_.fx(), settings_.estimator.inlier_threshold_deg * kDegToRad);
+  calibration_fit_.add(result->residual_correlation);
+  if (calibration_fit_.mismatch()) rotation.invalidate(FrameStatus::kCalibrationMismatch, calibration_fit_.describe());
 }
 
 }  // namespace visual_gyro

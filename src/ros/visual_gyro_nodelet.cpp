@@ -304,6 +304,7 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     previous_stamp_ = stamp;
   }
   health_.processed();
+  reportCalibrationFit(result);
 
   if (!result.rotation.backend.empty() && result.rotation.backend != backend_used_) {
     backend_used_ = result.rotation.backend;
@@ -318,6 +319,18 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   frame.backend = backend_used_;
   frame.wall_start = wall_start;
   if (!outputs_->publish(frame, outputSettings(config))) health_.skipped("tf");
+}
+
+void VisualGyroNodelet::reportCalibrationFit(const FrameResult& result) {
+  // The verdict lasts until an estimate is valid again (or the camera changes); logged once.
+  if (result.status == FrameStatus::kCalibrationMismatch) {
+    if (health_.calibrationMismatch().empty()) {
+      NODELET_WARN("visual_gyro: calibration does not fit the images, estimates invalid: %s", result.reason.c_str());
+    }
+    health_.setCalibrationMismatch(result.reason);
+  } else if (result.hasEstimate()) {
+    health_.setCalibrationMismatch("");
+  }
 }
 
 bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const VisualGyroSettings& settings,
@@ -349,6 +362,7 @@ bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const VisualG
                               camera.height(), camera.fx());
       }
       if (have_previous_) resetState("camera_info changed");
+      health_.setCalibrationMismatch("");
       camera_ = camera;
       have_camera_ = true;
       have_failed_camera_ = false;

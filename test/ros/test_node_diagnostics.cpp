@@ -215,7 +215,7 @@ TEST(NodeDiagnostics, NoTextureIsNotAFrozenCamera) {
 
 TEST(NodeDiagnostics, CalibrationMismatchWarnsUntilCleared) {
   NodeDiagnostics d(0.0);
-  const std::string why = "calibration: residuals of neighbouring matches correlate (0.62 over the last 20 frames)";
+  const std::string why = "residuals of neighbouring matches agree (correlation 0.62 over the last 20 frames; ...)";
   d.setCalibrationMismatch(why);
   for (int k = 0; k < 10; ++k) {
     d.imageIn(100.0 + 0.1 * k);
@@ -224,7 +224,7 @@ TEST(NodeDiagnostics, CalibrationMismatchWarnsUntilCleared) {
   }
   auto s = fill(&d, 1.0);
   EXPECT_EQ(s.level, Level::WARN);
-  EXPECT_EQ(s.message, why);
+  EXPECT_EQ(s.message, "calibration does not fit the images, estimates invalid: " + why);
   EXPECT_EQ(value(s, "Calibration mismatch"), why);
   d.setCalibrationMismatch("");
   for (int k = 0; k < 10; ++k) {
