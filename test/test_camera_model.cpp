@@ -303,7 +303,8 @@ TEST(CalibrationProblem, FieldOfViewBoundsPerModel) {
       CameraModel(160.0, 160.0, 319.5, 239.5, 640, 480, DistortionModel::kEquidistant, {0.001, 0.0, 0.0, 0.0}));
   EXPECT_TRUE(contains(beyond, "the right edge lies 114 deg from the optical axis")) << beyond;
   const std::string widened = calibrationProblem(
-      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant, {3.52125, -3.66551, -0.754312, 0.687941}));
+      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant,
+                  {3.52125, -3.66551, -0.754312, 0.687941}));
   EXPECT_TRUE(contains(widened, "equidistant distortion widens the field of view implausibly")) << widened;
 }
 
@@ -311,10 +312,12 @@ TEST(CalibrationProblem, DistortionThatCannotBeInvertedOverTheImage) {
   // No direction maps onto the image's corner: undistortion stalls and the corner's bearing
   // would come from nowhere.
   std::string why = calibrationProblem(
-      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kPlumbBob, {-0.198011, 0.25939, 0.0459686, 0.034291, -0.144123}));
+      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kPlumbBob,
+                  {-0.198011, 0.25939, 0.0459686, 0.034291, -0.144123}));
   EXPECT_TRUE(contains(why, "plumb_bob distortion cannot be inverted at the top-left corner")) << why;
   why = calibrationProblem(
-      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant, {0.0345591, -0.228005, -0.0280194, 0.0211694}));
+      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant,
+                  {0.0345591, -0.228005, -0.0280194, 0.0211694}));
   EXPECT_TRUE(contains(why, "equidistant distortion cannot be inverted")) << why;
 }
 

@@ -248,8 +248,8 @@ std::string principalPointProblem(const CameraModel& camera) {
   const double fu = (camera.cx() + 0.5) / w, fv = (camera.cy() + 0.5) / h;
   if (fu < margin || fu > 1.0 - margin || fv < margin || fv > 1.0 - margin) {
     why << "principal point (" << camera.cx() << ", " << camera.cy() << ") lies at " << std::fixed
-        << std::setprecision(1) << 100.0 * fu << " % / " << 100.0 * fv << " % of the " << camera.width() << "x" << camera.height()
-        << " image, outside its central " << std::setprecision(0) << 100.0 * kPrincipalPointCentralFraction
+        << std::setprecision(1) << 100.0 * fu << " % / " << 100.0 * fv << " % of the " << camera.width()
+        << "x" << camera.height() << " image, outside its central " << std::setprecision(0) << 100.0 * kPrincipalPointCentralFraction
         << " % (lens centres lie within a few percent of the image centre): wrong K, or K of "
            "another resolution?";
   }

@@ -191,7 +191,8 @@ void NodeDiagnostics::addValues(diagnostic_updater::DiagnosticStatusWrapper& sta
   status.add("Matches (mean)", w.estimates > 0 ? w.matches_sum / estimates : 0.0);
   status.add("Winning vote ratio (mean)", w.estimates > 0 ? w.vote_ratio_sum / estimates : 0.0);
   // Many pairs at half resolution: the camera blurs most images (exposure too long for the motion).
-  status.add("Half-resolution pairs [%]", w.estimates > 0 ? 100.0 * static_cast<double>(w.half_resolution) / estimates : 0.0);
+  status.add("Half-resolution pairs [%]",
+             w.estimates > 0 ? 100.0 * static_cast<double>(w.half_resolution) / estimates : 0.0);
   status.add("Method", context.method.empty() ? std::string("?") : context.method);
   status.add("Backend requested", context.backend_requested);
   const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;
