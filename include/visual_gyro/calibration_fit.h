@@ -73,7 +73,8 @@ class ResidualCorrelation {
 };
 
 /// Judges the calibration over the last kFitWindowFrames frames' correlations (ResidualCorrelation):
-/// it does not fit while their median is kFitMismatchCorrelation or more.
+/// it does not fit while their median is kFitMismatchCorrelation or more. Not thread-safe; one per
+/// stream.
 class CalibrationFitMonitor {
  public:
   /// Adds one frame's correlation; NaN (not judged) is ignored.
@@ -91,6 +92,7 @@ class CalibrationFitMonitor {
 
  private:
   std::vector<double> window_;  ///< oldest first
+  mutable std::vector<double> sorted_;  ///< median()'s copy of the window, reused
 };
 
 }  // namespace visual_gyro

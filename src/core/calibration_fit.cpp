@@ -102,9 +102,9 @@ bool CalibrationFitMonitor::mismatch() const {
 
 double CalibrationFitMonitor::median() const {
   if (window_.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::vector<double> sorted = window_;
-  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), mid, sorted.end());
+  sorted_.assign(window_.begin(), window_.end());
+  const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(sorted_.size() / 2);
+  std::nth_element(sorted_.begin(), mid, sorted_.end());
   return *mid;
 }
 
