@@ -294,6 +294,44 @@ TEST(ReliabilityRos, ImplausibleCalibrationIsAnErrorWithNoOutput) {
   ASSERT_TRUE(h.send(turn()[1], t + 0.1));
 }
 
+// A calibration plausible by itself (plumb_bob k1 = 0.3) that the rendered images do not have: once
+// the calibration check has seen enough frames, estimates are invalid (no Imu) and /diagnostics
+// names camera_info; a fitting camera_info brings valid estimates back.
+TEST(ReliabilityRos, CalibrationThatDoesNotFitTheImagesWarnsAndInvalidates) {
+  Harness& h = *g_harness;
+  h.clear();
+  sensor_msgs::CameraInfo info = h.info();
+  info.D = {0.3, 0.0, 0.0, 0.0, 0.0};
+  // The views turn right and back (1 deg per frame).
+  auto view = [](int k) { return turn()[k % 22 < 12 ? k % 22 : 22 - k % 22]; };
+  double t = 520.0;
+  for (int k = 0; k < 30; ++k, t += 0.1) ASSERT_TRUE(h.send(view(k), t, 5.0, enc::MONO8, true, &info));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 29u);
+  size_t valid = 0, mismatched = 0;
+  for (const auto& r : rotations) {
+    valid += r.valid;
+    mismatched += r.status.rfind("calibration_mismatch: ", 0) == 0;
+  }
+  EXPECT_EQ(valid, visual_gyro::kFitWindowFrames - 1) << "valid until the check has judged a full window";
+  EXPECT_EQ(mismatched, rotations.size() - valid);
+  EXPECT_FALSE(rotations.back().valid);
+  EXPECT_NE(rotations.back().status.find("camera_info's distortion or intrinsics may not fit the images"),
+            std::string::npos)
+      << rotations.back().status;
+  EXPECT_EQ(h.imus().size(), valid) << "an Imu from an invalidated estimate";
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "calibration does not fit the images, estimates invalid", 3.0));
+  EXPECT_EQ(h.logLines("calibration does not fit the images"), 1) << "logged more than once";
+  // The camera's own calibration: the check starts afresh, estimates are valid.
+  h.clear();
+  t += 10.0;
+  for (int k = 0; k < 3; ++k, t += 0.1) ASSERT_TRUE(h.send(view(k), t));
+  h.settle();
+  ASSERT_EQ(h.rotations().size(), 2u);
+  for (const auto& r : h.rotations()) EXPECT_TRUE(r.valid) << r.status;
+}
+
 TEST(ReliabilityRos, CameraInfoChangingEveryFrameIsAResetStorm) {
   Harness& h = *g_harness;
   h.clear();
@@ -397,44 +435,6 @@ TEST(ReliabilityRos, RejectedLiveChangeKeepsThePreviousSettingsAndWarns) {
   ASSERT_TRUE(ros::param::get(std::string(kNs) + "/rotation_window_deg", stored));
   EXPECT_EQ(stored, 8.0);
   ASSERT_TRUE(reconfigure("rotation_window_deg", before_window));
-}
-
-// A calibration plausible by itself (plumb_bob k1 = 0.3) that the rendered images do not have: once
-// the calibration check has seen enough frames, estimates are invalid (no Imu) and /diagnostics
-// names camera_info; a fitting camera_info brings valid estimates back.
-TEST(ReliabilityRos, CalibrationThatDoesNotFitTheImagesWarnsAndInvalidates) {
-  Harness& h = *g_harness;
-  h.clear();
-  sensor_msgs::CameraInfo info = h.info();
-  info.D = {0.3, 0.0, 0.0, 0.0, 0.0};
-  // The views turn right and back (1 deg per frame).
-  auto view = [](int k) { return turn()[k % 22 < 12 ? k % 22 : 22 - k % 22]; };
-  double t = 1100.0;
-  for (int k = 0; k < 30; ++k, t += 0.1) ASSERT_TRUE(h.send(view(k), t, 5.0, enc::MONO8, true, &info));
-  h.settle();
-  const auto rotations = h.rotations();
-  ASSERT_EQ(rotations.size(), 29u);
-  size_t valid = 0, mismatched = 0;
-  for (const auto& r : rotations) {
-    valid += r.valid;
-    mismatched += r.status.rfind("calibration_mismatch: ", 0) == 0;
-  }
-  EXPECT_EQ(valid, visual_gyro::kFitWindowFrames - 1) << "valid until the check has judged a full window";
-  EXPECT_EQ(mismatched, rotations.size() - valid);
-  EXPECT_FALSE(rotations.back().valid);
-  EXPECT_NE(rotations.back().status.find("camera_info's distortion or intrinsics may not fit the images"),
-            std::string::npos)
-      << rotations.back().status;
-  EXPECT_EQ(h.imus().size(), valid) << "an Imu from an invalidated estimate";
-  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "calibration does not fit the images, estimates invalid", 3.0));
-  EXPECT_EQ(h.logLines("calibration does not fit the images"), 1) << "logged more than once";
-  // The camera's own calibration: the check starts afresh, estimates are valid.
-  h.clear();
-  t += 10.0;
-  for (int k = 0; k < 3; ++k, t += 0.1) ASSERT_TRUE(h.send(view(k), t));
-  h.settle();
-  ASSERT_EQ(h.rotations().size(), 2u);
-  for (const auto& r : h.rotations()) EXPECT_TRUE(r.valid) << r.status;
 }
 
 }  // namespace
