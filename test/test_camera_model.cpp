@@ -219,6 +219,108 @@ TEST(CameraModel, InvalidDistortionGivesNonFiniteNotGarbage) {
   EXPECT_FALSE(camera.project(Eigen::Vector3d(0.1, 0.1, 1.0).normalized()).allFinite());
 }
 
+// ---------------------------------------------------------------------------------------------
+// calibrationProblem(): calibrations that do not fit their images
+// ---------------------------------------------------------------------------------------------
+
+bool contains(const std::string& text, const std::string& needle) {
+  return text.find(needle) != std::string::npos;
+}
+
+/// kitti_turn's camera (calib.txt), with `model` and `d` instead of its (absent) distortion.
+CameraModel kittiTurn(DistortionModel model = DistortionModel::kNone, const std::vector<double>& d = {}) {
+  return CameraModel(718.856, 718.856, 607.1928, 185.2157, 1241, 376, model, d);
+}
+
+TEST(CalibrationProblem, CamerasOfTheSharedAndRenderedSequencesPass) {
+  EXPECT_EQ(calibrationProblem(kittiTurn()), "");
+  EXPECT_EQ(calibrationProblem(CameraModel(707.0912, 707.0912, 601.8873, 183.1104, 1226, 370)), "");
+  EXPECT_EQ(calibrationProblem(eurocRadTan()), "");
+  // The renderer's default camera and its centred cameras of other sizes.
+  EXPECT_EQ(calibrationProblem(CameraModel(500.0, 500.0, 319.5, 239.5, 640, 480)), "");
+  EXPECT_EQ(calibrationProblem(CameraModel(250.0, 250.0, 159.5, 119.5, 320, 240)), "");
+  EXPECT_EQ(calibrationProblem(CameraModel(40.0, 40.0, 31.5, 23.5, 64, 48)), "");
+  // Real lenses: a wide fisheye, TUM-VI's (whose image corners lie 115 deg off axis, outside the
+  // lens's image circle), a strong radial-tangential lens with k3, and a pinhole lens written as
+  // equidistant (the tangent's series: k1 = 1/3, k2 = 2/15, k3 = 17/315).
+  EXPECT_EQ(calibrationProblem(equidistantFisheye()), "");
+  EXPECT_EQ(calibrationProblem(CameraModel(190.97, 190.97, 254.93, 256.89, 512, 512, DistortionModel::kEquidistant,
+                                           {0.0034823, 0.0007150, -0.0020532, 0.0002029})),
+            "");
+  EXPECT_EQ(calibrationProblem(CameraModel(700.0, 705.0, 640.0, 360.0, 1280, 720, DistortionModel::kPlumbBob,
+                                           {-0.3, 0.12, 0.001, -0.0005, -0.02})),
+            "");
+  EXPECT_EQ(calibrationProblem(kittiTurn(DistortionModel::kEquidistant, {1.0 / 3, 2.0 / 15, 17.0 / 315, 0.0})), "");
+}
+
+// Calibrations that gave valid, confident and wrong rates on kitti_turn (true rate about
+// +0.45 rad/s about y): each is refused, naming what is wrong and the numbers.
+TEST(CalibrationProblem, KittiFramesWithAWrongCalibrationAreRefused) {
+  std::string why = calibrationProblem(kittiTurn(DistortionModel::kPlumbBob, {5.0, 0.0, 0.0, 0.0, 0.0}));
+  EXPECT_TRUE(contains(why, "plumb_bob distortion shrinks the field of view")) << why;
+  EXPECT_TRUE(contains(why, "0.578 times the undistorted pinhole's 41.5 deg")) << why;
+
+  why = calibrationProblem(kittiTurn(DistortionModel::kEquidistant, {3.0, 0.0, 0.0, 0.0}));
+  EXPECT_TRUE(contains(why, "equidistant distortion shrinks the field of view")) << why;
+
+  why = calibrationProblem(kittiTurn(DistortionModel::kPlumbBob, {50.0, -300.0, 1.0, 1.0, 900.0}));
+  EXPECT_TRUE(contains(why, "plumb_bob distortion shrinks the field of view")) << why;
+
+  why = calibrationProblem(CameraModel(718.856, 718.856, 1240.0, 375.0, 1241, 376));
+  EXPECT_TRUE(contains(why, "principal point (1240, 375) lies at 100.0 % / 99.9 % of the 1241x376 image, "
+                            "outside its central 60 %"))
+      << why;
+}
+
+TEST(CalibrationProblem, PrincipalPointWithinTheCentralSixtyPercent) {
+  // 20 % from either side in each axis is the bound (pixel edges: (c + 0.5) / size).
+  auto camera = [](double cx, double cy) { return CameraModel(500.0, 500.0, cx, cy, 640, 480); };
+  EXPECT_EQ(calibrationProblem(camera(0.21 * 640 - 0.5, 239.5)), "");
+  EXPECT_EQ(calibrationProblem(camera(0.79 * 640 - 0.5, 0.79 * 480 - 0.5)), "");
+  EXPECT_TRUE(contains(calibrationProblem(camera(0.19 * 640 - 0.5, 239.5)), "outside its central 60 %"));
+  EXPECT_TRUE(contains(calibrationProblem(camera(319.5, 0.81 * 480 - 0.5)), "outside its central 60 %"));
+  EXPECT_TRUE(contains(calibrationProblem(camera(319.5, -3.0)), "lies outside the 640x480 image"));
+}
+
+TEST(CalibrationProblem, FieldOfViewBoundsPerModel) {
+  // Pincushion just inside and beyond 0.8 of the pinhole's angle at KITTI's corners (0.85 and 0.78).
+  EXPECT_EQ(calibrationProblem(kittiTurn(DistortionModel::kPlumbBob, {0.5, 0.0, 0.0, 0.0})), "");
+  EXPECT_TRUE(contains(calibrationProblem(kittiTurn(DistortionModel::kPlumbBob, {1.0, 0.0, 0.0, 0.0})),
+                       "shrinks the field of view"));
+  // A plumb_bob lens wider than 150 deg diagonally (a 640x480 image at f = 100 px: 152 deg as a
+  // pinhole already; mild barrel distortion keeps it monotonic).
+  const std::string wide = calibrationProblem(
+      CameraModel(100.0, 100.0, 319.5, 239.5, 640, 480, DistortionModel::kPlumbBob, {-0.001, 0.0, 0.0, 0.0}));
+  EXPECT_TRUE(contains(wide, "diagonal field of view of")) << wide;
+  EXPECT_TRUE(contains(wide, "use equidistant for wider lenses")) << wide;
+  // A 190 deg fisheye is fine (left and right edges 95 deg off axis, corners 119 deg); one whose
+  // coefficients put the edges beyond 1.6 times the ideal fisheye's angle is not, nor one whose
+  // edges lie beyond 100 deg.
+  EXPECT_EQ(calibrationProblem(CameraModel(193.0, 193.0, 319.5, 239.5, 640, 480, DistortionModel::kEquidistant,
+                                           {0.001, 0.0, 0.0, 0.0})),
+            "");
+  const std::string beyond = calibrationProblem(
+      CameraModel(160.0, 160.0, 319.5, 239.5, 640, 480, DistortionModel::kEquidistant, {0.001, 0.0, 0.0, 0.0}));
+  EXPECT_TRUE(contains(beyond, "the right edge lies 114 deg from the optical axis")) << beyond;
+  const std::string widened = calibrationProblem(
+      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant,
+                  {3.52125, -3.66551, -0.754312, 0.687941}));
+  EXPECT_TRUE(contains(widened, "equidistant distortion widens the field of view implausibly")) << widened;
+}
+
+TEST(CalibrationProblem, DistortionThatCannotBeInvertedOverTheImage) {
+  // No direction maps onto the image's corner: undistortion stalls and the corner's bearing
+  // would come from nowhere.
+  std::string why = calibrationProblem(
+      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kPlumbBob,
+                  {-0.198011, 0.25939, 0.0459686, 0.034291, -0.144123}));
+  EXPECT_TRUE(contains(why, "plumb_bob distortion cannot be inverted at the top-left corner")) << why;
+  why = calibrationProblem(
+      CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant,
+                  {0.0345591, -0.228005, -0.0280194, 0.0211694}));
+  EXPECT_TRUE(contains(why, "equidistant distortion cannot be inverted")) << why;
+}
+
 TEST(ParseDistortionModel, KnownAndUnknownNames) {
   DistortionModel model = DistortionModel::kEquidistant;
   EXPECT_TRUE(parseDistortionModel("plumb_bob", &model));

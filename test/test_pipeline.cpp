@@ -180,14 +180,45 @@ TEST(Pipeline, TinyOrFeaturelessImagesGiveAnInvalidEstimateNotACrash) {
   EXPECT_TRUE(r.skipped());
   EXPECT_EQ(r.status, vg::FrameStatus::kImageRejected);
   EXPECT_NE(r.reason.find("smaller than the descriptor patch"), std::string::npos) << r.reason;
-  // Large enough but featureless (two different flat images): an invalid estimate.
+  // Large enough but featureless (two different flat images): no texture, not a frozen camera.
   vg::VisualGyro flat(vg::CameraModel(64, 64, 31.5, 31.5, 64, 64), cpuSettings());
-  EXPECT_EQ(flat.processFrame(cv::Mat(64, 64, CV_8UC1, cv::Scalar(128)), 0.0).status, vg::FrameStatus::kFirstFrame);
+  r = flat.processFrame(cv::Mat(64, 64, CV_8UC1, cv::Scalar(128)), 0.0);
+  EXPECT_EQ(r.status, vg::FrameStatus::kNoTexture) << r.reason;
   r = flat.processFrame(cv::Mat(64, 64, CV_8UC1, cv::Scalar(129)), 0.1);
   EXPECT_FALSE(r.hasEstimate());
-  EXPECT_EQ(r.status, vg::FrameStatus::kTooFewMatches) << r.reason;
+  EXPECT_EQ(r.status, vg::FrameStatus::kNoTexture) << r.reason;
   EXPECT_TRUE(r.rotation.rotation.isIdentity());
   EXPECT_EQ(r.features, 0);
+}
+
+TEST(Pipeline, BlackOrWhiteStreamsHaveNoTextureATexturedRepeatIsFrozen) {
+  const vg::RenderSettings scene = smallScene();
+  vg::VisualGyro gyro(vg::test::cameraOf(scene), cpuSettings());
+  const cv::Mat black(scene.height, scene.width, CV_8UC1, cv::Scalar(0));
+  const cv::Mat white(scene.height, scene.width, CV_8UC1, cv::Scalar(255));
+  const cv::Mat view = vg::renderView(scene, Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  // A black stream, from the first frame on: no texture, never "camera frozen?".
+  for (int k = 0; k < 3; ++k) {
+    const vg::FrameResult r = gyro.processFrame(black, 0.1 * k);
+    EXPECT_EQ(r.status, vg::FrameStatus::kNoTexture) << r.reason;
+    EXPECT_NE(r.reason.find("no texture"), std::string::npos) << r.reason;
+    EXPECT_EQ(r.reason.find("frozen"), std::string::npos) << r.reason;
+  }
+  EXPECT_EQ(gyro.processFrame(view, 0.3).status, vg::FrameStatus::kFirstFrame);
+  // White frames keep the textured image as the previous one, with its stamp.
+  vg::FrameResult r = gyro.processFrame(white, 0.4);
+  EXPECT_EQ(r.status, vg::FrameStatus::kNoTexture) << r.reason;
+  EXPECT_NEAR(r.dt, 0.1, 1e-9);
+  // The textured image repeated is a frozen camera.
+  r = gyro.processFrame(view, 0.5);
+  EXPECT_EQ(r.status, vg::FrameStatus::kFrozenImage) << r.reason;
+  EXPECT_NE(r.reason.find("camera frozen?"), std::string::npos) << r.reason;
+  // Flat grey with sensor noise (sigma 2): texture by its standard deviation, but nothing to match.
+  cv::Mat noisy(scene.height, scene.width, CV_8UC1);
+  cv::randn(noisy, cv::Scalar(128), cv::Scalar(2));
+  r = gyro.processFrame(noisy, 0.6);
+  EXPECT_FALSE(r.hasEstimate());
+  EXPECT_NE(r.status, vg::FrameStatus::kFrozenImage) << r.reason;
 }
 
 TEST(Pipeline, RejectsUnusableCameraAndSettings) {

@@ -235,6 +235,12 @@ TEST_F(EvaluateBadInput, ImplausibleCalibrationMakesTheFolderUnusable) {
   out = evaluate(dir, &status);
   EXPECT_EQ(status, 1) << out;
   EXPECT_TRUE(contains(out, "focal length")) << out;
+  // Inside the image but at its corner: a K that does not belong to these images.
+  write(dir + "/calib.txt", "P0: 250 0 319 0 0 250 239 0 0 0 1 0\n");
+  out = evaluate(dir, &status);
+  EXPECT_EQ(status, 1) << out;
+  EXPECT_TRUE(contains(out, "implausible calibration: principal point (319, 239) lies at 99.8 % / 99.8 %")) << out;
+  EXPECT_FALSE(contains(out, "mean_rate_dps")) << "a rate was reported: " << out;
 }
 
 TEST_F(EvaluateBadInput, ImagesSmallerThanThePatchAreNamed) {

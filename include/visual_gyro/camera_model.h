@@ -52,13 +52,24 @@ class CameraModel {
   std::vector<double> distortion_;
 };
 
-/// "" when the calibration is plausible for its image, else what is implausible. Checks, beyond
-/// CameraModel::validate(): the principal point lies inside the image; each focal length is
-/// between 0.1 and 100 times the larger image side (fields of view of about 157 deg down to 0.6 deg)
-/// and fy / fx is within [0.25, 4]; the distortion is monotonic over the image: along rays from
-/// the principal point, the distorted radius keeps growing with the angle to the optical axis
-/// until the ray leaves the image (a lens model that folds back would map two directions onto one
-/// pixel and make bearings, hence rates, wrong). Used wherever a camera model enters the pipeline.
+/// "" when the calibration is plausible for its image, else what is implausible, with the numbers.
+/// Checks, beyond CameraModel::validate():
+/// - the principal point lies within the central 60 % of the image in each axis (lens centres lie
+///   within a few percent of the image centre);
+/// - each focal length is between 0.1 and 100 times the larger image side (fields of view of
+///   about 157 deg down to 0.6 deg) and fy / fx is within [0.25, 4];
+/// - the distortion is monotonic over the image: along rays from the principal point, the
+///   distorted radius keeps growing with the angle to the optical axis until the ray leaves the
+///   image (a lens model that folds back would map two directions onto one pixel);
+/// - the distortion keeps the field of view plausible for its model, judged at the image's four
+///   corners and four edge midpoints after undistortion: undistortion reproduces each of them
+///   within 0.01 px; none lies at less than 0.8 times the undistorted pinhole's angle from the
+///   optical axis; plumb_bob: none at more than 2 times it, and at most 150 deg between opposite
+///   corners; equidistant: none beyond 100 deg from the axis (a 200 deg field of view) or at more
+///   than 1.6 times the ideal fisheye's angle (theta = normalised radius).
+/// A calibration that fails any of these gives rates that are wrong (KITTI frames with plumb_bob
+/// k1 = 5 gave the rate's sign flipped), so it is refused wherever a camera model enters the
+/// pipeline (VisualGyro, the nodelet's camera_info, evaluate's readers).
 std::string calibrationProblem(const CameraModel& camera);
 
 }  // namespace visual_gyro

@@ -16,6 +16,9 @@ enum class FrameStatus {
   kTimeStepTooSmall,  ///< less than min_dt after the previous frame; skipped
   kFrontEndFailed,    ///< the front end threw; skipped
   kFrozenImage,       ///< bit-identical to the previous image (frozen camera); no estimate
+  /// Nothing to see: grey levels (almost) uniform or no corner found (lens cap, darkness,
+  /// overexposure); no estimate, and, as for kFrozenImage, the previous image stays.
+  kNoTexture,
   kNotEstimated,      ///< matched only (run_estimator = false), or no estimate was attempted
   kBadBearings,       ///< estimator input unusable: lists of unequal size, non-finite, not unit
   kTooFewMatches,     ///< fewer matches than min_matches
@@ -24,6 +27,9 @@ enum class FrameStatus {
   kTooFewInliers,     ///< the result explains fewer than min_inlier_ratio of the matches, or its
                       ///< inliers cover fewer than kMinDescriptorAreas descriptor patches
   kImplausibleRate,   ///< the rate exceeds max_rate_dps
+  /// The camera model does not fit the images: the residuals of neighbouring matches have agreed
+  /// over the last frames (CalibrationFitMonitor); every estimate is invalid until they do not.
+  kCalibrationMismatch,
   kEstimatorFailed,   ///< the backend failed mid-stream (e.g. a lost GPU)
 };
 

@@ -2,6 +2,7 @@
 // ROS-free; the nodelet (src/ros/) and the evaluation command both drive it.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/camera_model.h"
 #include "visual_gyro/feature_front_end.h"
 #include "visual_gyro/frame_status.h"
@@ -35,8 +37,8 @@ struct FrameTimes {
 /// What the pipeline produced for one image.
 struct FrameResult {
   /// kValid when the frame has an estimate; otherwise why not (see frame_status.h). Skipped
-  /// statuses (frameSkipped) leave the pipeline's state untouched; kFrozenImage keeps the previous
-  /// image and its stamp.
+  /// statuses (frameSkipped) leave the pipeline's state untouched; kFrozenImage and kNoTexture keep
+  /// the previous image and its stamp.
   FrameStatus status = FrameStatus::kNotEstimated;
   std::string reason;  ///< details for people ("" when valid)
   /// True when status is kValid: rotation and angular_velocity hold an estimate.
@@ -63,6 +65,10 @@ struct FrameResult {
   /// one is not, or as many inliers or more and a smaller covariance). Their pixels are
   /// full-resolution coordinates all the same.
   bool half_resolution = false;
+  /// Correlation of the estimate's residuals between neighbouring matches (ResidualCorrelation;
+  /// vote method, NaN otherwise or when too few matches): near 0 when the camera model fits the
+  /// images. Over the last kFitWindowFrames frames it decides kCalibrationMismatch.
+  double residual_correlation = std::numeric_limits<double>::quiet_NaN();
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
@@ -117,6 +123,13 @@ std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt
 /// (RotationEstimator::setMatchFootprint).
 double matchFootprint(const CameraModel& camera);
 
+/// Grey-level standard deviation [grey levels] below which an image has no texture (FrameStatus::
+/// kNoTexture): all-black and all-white (clipped) images have 0; the least textured images the
+/// pipeline still estimates have more: kitti_turn's frames dimmed to 5 % contrast 3.1, the
+/// renderer's dim room 6. A flat image with sensor noise passes this check (its noise is its
+/// standard deviation) and is then caught by having no corner, or gives too few matches.
+constexpr double kMinTextureStdDev = 1.0;
+
 /// Smallest image side the front end can describe a keypoint in: the BRIEF patch plus the
 /// detector's border on both sides [px].
 constexpr int kMinImageSide = 2 * (kBriefHalfPatch + 1) + 1;
@@ -132,15 +145,20 @@ class VisualGyro {
 
   /// Processes the next image (CV_8UC1; stamp in seconds). Never throws for bad images: returns a
   /// FrameResult whose status says why there is no estimate. A stamp not after the previous one, or
-  /// less than min_dt after it, is rejected without touching the state (skipped); an image
-  /// identical to the previous one is flagged frozen; an estimated rate above max_rate_dps is
-  /// invalid.
+  /// less than min_dt after it, is rejected without touching the state (skipped); an image without
+  /// texture (grey-level standard deviation below kMinTextureStdDev, or no corner found) is
+  /// flagged kNoTexture, one identical to the previous one frozen (both keep the previous image);
+  /// an estimated rate above max_rate_dps is invalid; so is every estimate while the calibration
+  /// does not fit the images (kCalibrationMismatch: CalibrationFitMonitor over the vote method's
+  /// estimates; the rotation still serves as the next frame's prior).
   FrameResult processFrame(const cv::Mat& gray, double stamp);
 
-  /// Forgets the previous frame (after a time jump or a camera change).
+  /// Forgets the previous frame (after a time jump or a camera change). The calibration check's
+  /// recent frames stay: the camera is the same.
   void reset();
-  /// Changes intrinsics (camera_info changed); resets. Throws std::invalid_argument when unusable
-  /// (validate() or calibrationProblem() names a problem).
+  /// Changes intrinsics (camera_info changed); resets, and the calibration check starts afresh.
+  /// Throws std::invalid_argument when unusable (validate() or calibrationProblem() names a
+  /// problem).
   void setCamera(const CameraModel& camera);
   /// Changes settings live; the backend stays.
   void setSettings(const VisualGyroSettings& settings);
@@ -172,6 +190,9 @@ class VisualGyro {
   /// Records how far the matches of `result` lie from where its estimated rotation alone puts
   /// them (search_parallax_rad_; 0 without an estimate).
   void updateSearchParallax(const FrameResult& result);
+  /// Judges the calibration by the valid vote-method estimate in `result` (its
+  /// residual_correlation), and invalidates the estimate while the calibration does not fit.
+  void checkCalibrationFit(FrameResult* result);
 
   CameraModel camera_;
   VisualGyroSettings settings_;
@@ -190,6 +211,8 @@ class VisualGyro {
   /// search too.
   double search_parallax_rad_ = 0.0;
   std::vector<double> parallax_scratch_;  // per-match parallax, reused
+  ResidualCorrelation residual_correlation_;
+  CalibrationFitMonitor calibration_fit_;
   std::string matching_;  // how the last frame was matched (FrameResult::matching)
   // Per-frame buffers, reused (swapped with the previous frame's) so that the steady state does not
   // allocate in the front end.

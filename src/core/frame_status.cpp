@@ -13,6 +13,7 @@ const char* frameStatusName(FrameStatus status) {
     case FrameStatus::kTimeStepTooSmall: return "time_step_too_small";
     case FrameStatus::kFrontEndFailed: return "front_end_failed";
     case FrameStatus::kFrozenImage: return "frozen_image";
+    case FrameStatus::kNoTexture: return "no_texture";
     case FrameStatus::kNotEstimated: return "not_estimated";
     case FrameStatus::kBadBearings: return "bad_bearings";
     case FrameStatus::kTooFewMatches: return "too_few_matches";
@@ -20,6 +21,7 @@ const char* frameStatusName(FrameStatus status) {
     case FrameStatus::kFlatHistogram: return "flat_histogram";
     case FrameStatus::kTooFewInliers: return "too_few_inliers";
     case FrameStatus::kImplausibleRate: return "implausible_rate";
+    case FrameStatus::kCalibrationMismatch: return "calibration_mismatch";
     case FrameStatus::kEstimatorFailed: return "estimator_failed";
   }
   return "unknown";

@@ -144,6 +144,7 @@ void VisualGyro::setCamera(const CameraModel& camera) {
   checkCamera(camera);
   camera_ = camera;
   estimator_->setMatchFootprint(matchFootprint(camera_));
+  calibration_fit_.reset();
   reset();
 }
 
@@ -193,6 +194,18 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     return reject(FrameStatus::kTimeStepTooSmall, "time step " + formatNumber(result.dt) + " s below min_dt (" +
                                                       formatNumber(settings_.min_dt) + " s): frame skipped");
   }
+  // Checked before the frozen camera: a uniform image (lens cap, darkness, overexposure) is
+  // identical to the next one too, though the camera is not what fails.
+  cv::Scalar grey_mean, grey_stddev;
+  cv::meanStdDev(gray, grey_mean, grey_stddev);
+  if (grey_stddev[0] < kMinTextureStdDev) {
+    if (has_previous_) result.dt = stamp - previous_stamp_;
+    std::ostringstream why;
+    why.precision(3);
+    why << "image has no texture (grey levels " << grey_mean[0] << " +- " << grey_stddev[0]
+        << "): lens cap, darkness or overexposure?";
+    return reject(FrameStatus::kNoTexture, why.str());
+  }
   if (has_previous_ && bitIdentical(gray, previous_gray_)) {
     // A driver repeating its last frame with a new stamp would otherwise read as "no rotation"
     // while the camera may be turning. The previous image keeps its stamp: it is when that
@@ -217,6 +230,11 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
   }
   result.features = static_cast<int>(features.keypoints.size());
+  if (features.keypoints.empty()) {
+    // Like a uniform image: nothing to pair with, so the previous image stays.
+    if (has_previous_) result.dt = stamp - previous_stamp_;
+    return reject(FrameStatus::kNoTexture, "image has no texture: no corner found");
+  }
   std::vector<Eigen::Vector3d>& bearings = bearings_;
   bearings.resize(features.keypoints.size());
   for (size_t i = 0; i < bearings.size(); ++i)
@@ -271,6 +289,7 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
       prior_.update(result.rotation, dt);
       updatePriorUncertainty(prior, result.rotation);
       updateSearchParallax(result);
+      checkCalibrationFit(&result);
       result.status = result.rotation.status;
       result.reason = result.rotation.reason;
       if (result.hasEstimate()) {
@@ -482,6 +501,18 @@ void VisualGyro::updateSearchParallax(const FrameResult& result) {
   const auto median = parallax_scratch_.begin() + static_cast<std::ptrdiff_t>(n / 2);
   std::nth_element(parallax_scratch_.begin(), median, parallax_scratch_.end());
   if (std::isfinite(*median)) search_parallax_rad_ = kParallaxCover * *median;
+}
+
+void VisualGyro::checkCalibrationFit(FrameResult* result) {
+  RotationResult& rotation = result->rotation;
+  // The paper method models no translation: a moving camera's parallax, shared by neighbours,
+  // would read as a calibration error.
+  if (!rotation.valid() || settings_.estimator.method != EstimationMethod::kVote) return;
+  result->residual_correlation = residual_correlation_.compute(
+      result->previous_bearings, result->current_bearings, rotation.rotation, rotation.translation,
+      1.0 / camera_.fx(), settings_.estimator.inlier_threshold_deg * kDegToRad);
+  calibration_fit_.add(result->residual_correlation);
+  if (calibration_fit_.mismatch()) rotation.invalidate(FrameStatus::kCalibrationMismatch, calibration_fit_.describe());
 }
 
 }  // namespace visual_gyro

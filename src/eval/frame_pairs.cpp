@@ -160,7 +160,11 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
       // front-end pipeline's own estimate (guided matching) failing are not.
       if (r.skipped()) throw DataError("image " + seq.image_paths[k] + ": " + r.reason);
     }
+    // A frozen or textureless image leaves the pipeline's previous frame in place; so does this
+    // loop (before the first usable image there is none).
+    const bool unusable = r.status == FrameStatus::kFrozenImage || r.status == FrameStatus::kNoTexture;
     if (!have_previous) {
+      if (unusable) continue;
       have_previous = true;
       previous_index = k;
       continue;
@@ -172,7 +176,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
     p.previous = std::move(r.previous_bearings);
     p.current = std::move(r.current_bearings);
     p.front_end = r.times;
-    p.frozen = r.status == FrameStatus::kFrozenImage;
+    if (unusable) p.unusable_image = std::string(frameStatusName(r.status)) + ": " + r.reason;
     p.matching = r.matching;
     p.tracked = r.tracked;
     p.half_resolution = r.half_resolution;
@@ -184,8 +188,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
                    pairs.size() + 1, previous_index, k, p.previous.size());
     }
     pairs.push_back(std::move(p));
-    // A frozen image left the pipeline's previous frame in place; so does this loop.
-    if (!pairs.back().frozen) previous_index = k;
+    if (!unusable) previous_index = k;
   }
   if (progress) std::fprintf(stderr, "\n");
   if (skipped_min_dt > 0) {

@@ -33,7 +33,10 @@ struct FramePair {
   std::string matching;       ///< native front end: guided, global or global_fallback
   int tracked = 0;            ///< native front end: pairs that are tracked corners (before subsampling)
   bool half_resolution = false;  ///< native front end: matched at half resolution (FrameResult)
-  bool frozen = false;        ///< the current image is bit-identical to the previous one (no matches)
+  /// Why the current image gave no matches and left the previous one in place, as
+  /// "<frame status>: <reason>": bit-identical to the previous image (frozen_image) or without
+  /// texture (no_texture); "" for a usable image.
+  std::string unusable_image;
   metrics::FrameTruth truth;  ///< the pair's reference
   double true_translation = std::numeric_limits<double>::quiet_NaN();  ///< camera displacement [m] (poses)
 };

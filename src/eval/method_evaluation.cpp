@@ -1,5 +1,6 @@
 #include "method_evaluation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -8,6 +9,7 @@
 
 #include "imu_alignment_report.h"
 #include "json_writer.h"
+#include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/geometry.h"
 
 namespace visual_gyro {
@@ -19,6 +21,25 @@ std::string fmt(double v, int decimals = 3) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
   return buf;
+}
+
+/// The calibration check's figures over the rows: the median correlation and the largest median
+/// of a full window, as CalibrationFitMonitor judges them.
+void summarizeCalibrationFit(MethodSummary* s) {
+  std::vector<double> all;
+  CalibrationFitMonitor window;
+  for (const FrameRow& row : s->rows) {
+    if (!std::isfinite(row.residual_correlation)) continue;
+    all.push_back(row.residual_correlation);
+    window.add(row.residual_correlation);
+    if (window.frames() == kFitWindowFrames) {
+      s->residual_correlation_window_max = std::fmax(s->residual_correlation_window_max, window.median());
+    }
+  }
+  if (all.empty()) return;
+  const auto mid = all.begin() + static_cast<std::ptrdiff_t>(all.size() / 2);
+  std::nth_element(all.begin(), mid, all.end());
+  s->residual_correlation_median = *mid;
 }
 
 }  // namespace
@@ -50,6 +71,7 @@ MethodSummary runMethod(const std::string& method, MethodRunner* runner, const s
     row.translation = e.translation;
     row.diagnostics = e.diagnostics;
     row.half_resolution = p.half_resolution;
+    row.residual_correlation = e.residual_correlation;
     row.error = e.error;
     if (e.has_covariance) {
       row.sigma_deg = std::sqrt(e.covariance.trace()) * kRadToDeg;
@@ -86,6 +108,7 @@ MethodSummary runMethod(const std::string& method, MethodRunner* runner, const s
     s.tracked_mean /= n;
   }
   if (true_trans_n > 0) s.true_translation_mean = true_trans_sum / true_trans_n;
+  summarizeCalibrationFit(&s);
   return s;
 }
 
@@ -193,6 +216,12 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
     if (std::isfinite(s.vote_device)) out << " (GPU kernels " << fmt(s.vote_device) << ")";
     out << ", refine " << fmt(s.refine) << "\n";
   }
+  if (std::isfinite(s.residual_correlation_median)) {
+    out << "   calibration fit residual correlation of neighbouring matches: median "
+        << fmt(s.residual_correlation_median, 2) << ", largest " << kFitWindowFrames << "-frame median "
+        << fmt(s.residual_correlation_window_max, 2) << " (calibration_mismatch from "
+        << fmt(kFitMismatchCorrelation, 2) << ")\n";
+  }
   if (!s.first_error.empty()) out << "   first invalid   " << s.first_error << "\n";
   return out.str();
 }
@@ -240,7 +269,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
   f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
        "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
        "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,near_miss_share,refit_jackknife,descriptor_areas,half_resolution,err_x_deg,err_y_deg,"
-       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,error\n";
+       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,residual_correlation,error\n";
   auto num = [](double v) -> std::string {
     if (!std::isfinite(v)) return "";
     char buf[32];
@@ -266,6 +295,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
       for (int k = 0; k < 3; ++k) f << ',' << num(e.error_vector_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.translation[k]);
+      f << ',' << num(r.residual_correlation);
       f << ",\"" << r.error << "\"\n";
     }
   }

@@ -30,6 +30,7 @@ struct FrameRow {
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();  ///< MethodEstimate::translation
   VoteDiagnostics diagnostics;
   bool half_resolution = false;  ///< the pair's matches came from half resolution (FramePair)
+  double residual_correlation = std::numeric_limits<double>::quiet_NaN();  ///< MethodEstimate's
   std::string error;
 };
 
@@ -49,6 +50,11 @@ struct MethodSummary {
   int guided_pairs = 0;   ///< native: pairs matched guided by the prior
   int fallback_pairs = 0;  ///< native: pairs where guided matching fell back to global
   int half_resolution_pairs = 0;  ///< native: pairs matched at half resolution (starved at full)
+  /// vote: median of the rows' residual_correlation, and the largest median over
+  /// kFitWindowFrames consecutive judged rows (what the calibration check compares with
+  /// kFitMismatchCorrelation); NaN for the other methods.
+  double residual_correlation_median = std::numeric_limits<double>::quiet_NaN();
+  double residual_correlation_window_max = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Runs `runner` over `pairs` in order: every row's estimate, times and diagnostics, not scored.

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <iostream>
 
+#include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/geometry.h"
 
 namespace visual_gyro {
@@ -87,18 +88,22 @@ class BaselineRunner : public MethodRunner {
   Eigen::Matrix3d initial_ = Eigen::Matrix3d::Identity();
 };
 
-/// Applies the pipeline's plausibility rules to a method: no estimate on a frozen image, and a
-/// rate above max_rate_dps is invalid, exactly as VisualGyro reports them.
+/// Applies the pipeline's plausibility rules to a method: no estimate on a frozen or textureless
+/// image, a rate above max_rate_dps is invalid and, when `judge_calibration` (vote), so is every
+/// estimate while the calibration does not fit, exactly as VisualGyro reports them.
 class PlausibilityRunner : public MethodRunner {
  public:
-  PlausibilityRunner(std::unique_ptr<MethodRunner> inner, const VisualGyroSettings& settings)
-      : inner_(std::move(inner)), settings_(settings) {}
+  PlausibilityRunner(std::unique_ptr<MethodRunner> inner, const VisualGyroSettings& settings,
+                     bool judge_calibration, double pixel_angle_rad)
+      : inner_(std::move(inner)),
+        settings_(settings),
+        judge_calibration_(judge_calibration),
+        pixel_angle_rad_(pixel_angle_rad) {}
 
   MethodEstimate run(const FramePair& pair) override {
-    if (pair.frozen) {
+    if (!pair.unusable_image.empty()) {
       MethodEstimate out;
-      out.error = std::string(frameStatusName(FrameStatus::kFrozenImage)) +
-                  ": image identical to the previous one (camera frozen?)";
+      out.error = pair.unusable_image;
       return out;
     }
     MethodEstimate out = inner_->run(pair);
@@ -111,13 +116,32 @@ class PlausibilityRunner : public MethodRunner {
         out.rotation_vector.setZero();
       }
     }
+    if (out.valid && judge_calibration_) judgeCalibration(pair, &out);
     return out;
   }
   std::string backend() const override { return inner_->backend(); }
 
  private:
+  /// VisualGyro::checkCalibrationFit on the pair's bearings.
+  void judgeCalibration(const FramePair& pair, MethodEstimate* out) {
+    out->residual_correlation =
+        correlation_.compute(pair.previous, pair.current, out->rotation, out->translation, pixel_angle_rad_,
+                             settings_.estimator.inlier_threshold_deg * kDegToRad);
+    fit_.add(out->residual_correlation);
+    if (!fit_.mismatch()) return;
+    out->valid = false;
+    out->error = std::string(frameStatusName(FrameStatus::kCalibrationMismatch)) + ": " + fit_.describe();
+    out->rotation.setIdentity();
+    out->rotation_vector.setZero();
+    out->translation.setZero();
+  }
+
   std::unique_ptr<MethodRunner> inner_;
   VisualGyroSettings settings_;
+  bool judge_calibration_ = false;
+  double pixel_angle_rad_ = 0.0;
+  ResidualCorrelation correlation_;
+  CalibrationFitMonitor fit_;
 };
 
 }  // namespace
@@ -146,15 +170,18 @@ std::string methodProblem(const std::string& method) {
 
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
                                          const BaselineSettings& baseline, bool refined_positions,
-                                         double match_footprint) {
+                                         double match_footprint, double pixel_angle_rad) {
   std::unique_ptr<MethodRunner> runner;
   EstimatorSettings estimator = settings.estimator;
-  if (parseMethod(method, &estimator.method)) {
+  const bool own = parseMethod(method, &estimator.method);
+  if (own) {
     runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions, match_footprint);
   } else {
     runner = std::make_unique<BaselineRunner>(method, baseline);
   }
-  return std::make_unique<PlausibilityRunner>(std::move(runner), settings);
+  // VisualGyro judges the calibration from the vote method's estimates only.
+  const bool judge = own && estimator.method == EstimationMethod::kVote;
+  return std::make_unique<PlausibilityRunner>(std::move(runner), settings, judge, pixel_angle_rad);
 }
 
 }  // namespace eval

@@ -34,6 +34,9 @@ struct MethodEstimate {
   /// an invalid estimate); zero for the other methods.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   VoteDiagnostics diagnostics;  ///< vote only
+  /// vote: the calibration check's correlation of the estimate's residuals between neighbouring
+  /// matches (FrameResult::residual_correlation); NaN for the other methods.
+  double residual_correlation = std::numeric_limits<double>::quiet_NaN();
   // vote / paper only (NaN for the baselines): the estimate's voter part (host clock), its GPU
   // kernels (NaN on the CPU backend), and the host part after the vote (see EstimateTimes).
   double vote_ms = std::numeric_limits<double>::quiet_NaN();
@@ -61,12 +64,13 @@ std::string methodProblem(const std::string& method);
 /// The runner of `method` (isOwnMethod: a RotationEstimator with `estimator`'s settings and this
 /// method, told whether the matches' positions are refined (RotationEstimator::setRefinedPositions)
 /// and the angle their descriptor patch spans [rad] (RotationEstimator::setMatchFootprint,
-/// matchFootprint() of the sequence's camera); else the baseline), wrapped so that it follows the pipeline's
-/// plausibility rules (no estimate on a frozen image; a rate above max_rate_dps is invalid)
-/// exactly as VisualGyro does.
+/// matchFootprint() of the sequence's camera); else the baseline), wrapped so that it follows the
+/// pipeline's plausibility rules (no estimate on a frozen or textureless image; a rate above
+/// max_rate_dps is invalid; vote: invalid while the calibration does not fit, judged from the
+/// matches' bearings with `pixel_angle_rad` radians per pixel) exactly as VisualGyro does.
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
                                          const BaselineSettings& baseline, bool refined_positions,
-                                         double match_footprint);
+                                         double match_footprint, double pixel_angle_rad);
 
 }  // namespace eval
 }  // namespace visual_gyro

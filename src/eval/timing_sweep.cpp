@@ -67,7 +67,8 @@ void timingSweep(const std::string& dataset, double pixel_angle, const TimingSwe
     for (const Point& point : points) {
       VisualGyroSettings s = settings;
       if (point.hypotheses > 0) s.estimator.hypotheses = point.hypotheses;
-      std::unique_ptr<MethodRunner> runner = makeRunner(method, s, baseline, o.refined_positions, o.match_footprint);
+      std::unique_ptr<MethodRunner> runner =
+          makeRunner(method, s, baseline, o.refined_positions, o.match_footprint, pixel_angle);
       std::vector<double> ms;
       double real = 0.0, vote = 0.0, vote_device = 0.0, refine = 0.0;
       for (const FramePair& p0 : pairs) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 
@@ -90,7 +91,11 @@ void NodeDiagnostics::imageIn(double stamp) {
   ++total_images_;
   // The expected rate comes from the stamps, so that it does not depend on how fast images are
   // delivered; only forward steps count (a jump back is a reset, not a frame interval).
-  if (have_last_stamp_ && stamp > last_stamp_) window_.stamp_steps.push_back(stamp - last_stamp_);
+  if (have_last_stamp_ && stamp > last_stamp_) {
+    window_.stamp_steps.push_back(stamp - last_stamp_);
+    recent_steps_.push_back(stamp - last_stamp_);
+    if (recent_steps_.size() > kIntervalSteps) recent_steps_.pop_front();
+  }
   have_last_stamp_ = true;
   last_stamp_ = stamp;
 }
@@ -113,6 +118,23 @@ void NodeDiagnostics::reset(const std::string& cause) {
   ++window_.resets;
   ++total_resets_;
   last_reset_cause_ = cause;
+}
+
+void NodeDiagnostics::noTexture(const std::string& reason) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++window_.no_texture;
+  ++total_no_texture_;
+  last_no_texture_reason_ = reason;
+}
+
+void NodeDiagnostics::setCalibrationMismatch(const std::string& why) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  calibration_mismatch_ = why;
+}
+
+std::string NodeDiagnostics::calibrationMismatch() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return calibration_mismatch_;
 }
 
 void NodeDiagnostics::estimatePublished(bool valid, const std::string& status, double latency_ms,
@@ -147,39 +169,41 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
   w.unpaired_images = w.probed_images > w.images ? w.probed_images - w.images : 0;
   window_ = Window();
   window_start_ = now;
+  recent_.push_back(RecentWindow{now, w.images, w.resets});
+  while (!recent_.empty() && recent_.front().end <= now - kRecentSpanS) recent_.pop_front();
+  addValues(status, w, span, context);
+  summarize(status, w, span, context);
+}
 
+void NodeDiagnostics::addValues(diagnostic_updater::DiagnosticStatusWrapper& status, const Window& w,
+                                double span, const Context& context) const {
   const double step = median(w.stamp_steps);
-  const double expected_hz = step > 0.0 ? 1.0 / step : 0.0;
-  const double images_hz = w.images / span;
-  const double estimates_hz = w.estimates / span;
-  const double valid_hz = (w.estimates - w.invalid) / span;
-  const double mean_latency = w.estimates > 0 ? w.latency_sum_ms / w.estimates : 0.0;
-
+  const double estimates = static_cast<double>(w.estimates);
   status.add("Subscribed", context.subscribed ? "yes" : "no (no output subscribers)");
-  status.add("Expected rate [Hz] (image stamps)", expected_hz);
-  status.add("Images in [Hz]", images_hz);
-  status.add("Estimates out [Hz]", estimates_hz);
-  status.add("Valid estimates out [Hz]", valid_hz);
+  status.add("Expected rate [Hz] (image stamps)", step > 0.0 ? 1.0 / step : 0.0);
+  status.add("Images in [Hz]", w.images / span);
+  status.add("Estimates out [Hz]", w.estimates / span);
+  status.add("Valid estimates out [Hz]", (w.estimates - w.invalid) / span);
   status.add("Imu out [Hz]", w.imus / span);
   status.add("Images without camera_info [Hz]", w.unpaired_images / span);
-  status.add("Latency mean [ms]", mean_latency);
+  status.add("Latency mean [ms]", w.estimates > 0 ? w.latency_sum_ms / estimates : 0.0);
   status.add("Latency max [ms]", w.latency_max_ms);
-  status.add("Matches (mean)", w.estimates > 0 ? w.matches_sum / w.estimates : 0.0);
-  status.add("Winning vote ratio (mean)", w.estimates > 0 ? w.vote_ratio_sum / w.estimates : 0.0);
+  status.add("Matches (mean)", w.estimates > 0 ? w.matches_sum / estimates : 0.0);
+  status.add("Winning vote ratio (mean)", w.estimates > 0 ? w.vote_ratio_sum / estimates : 0.0);
   // Many pairs at half resolution: the camera blurs most images (exposure too long for the motion).
   status.add("Half-resolution pairs [%]",
-             w.estimates > 0 ? 100.0 * static_cast<double>(w.half_resolution) / w.estimates : 0.0);
+             w.estimates > 0 ? 100.0 * static_cast<double>(w.half_resolution) / estimates : 0.0);
   status.add("Method", context.method.empty() ? std::string("?") : context.method);
   status.add("Backend requested", context.backend_requested);
   const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;
-  const std::string& backend_warning =
-      context.backend_warning.empty() ? backend_warning_ : context.backend_warning;
+  const std::string& backend_warning = context.backend_warning.empty() ? backend_warning_ : context.backend_warning;
   status.add("Backend", backend_used.empty() ? std::string("(not started: no image yet)") : backend_used);
   if (!backend_warning.empty()) status.add("Backend warning", backend_warning);
   status.add("Images received", total_images_);
   status.add("Estimates published", total_estimates_);
   status.add("Imu published", total_imus_);
   status.add("Invalid estimates", total_invalid_);
+  status.add("Images without texture", total_no_texture_);
   status.add("Resets", total_resets_);
   if (!last_reset_cause_.empty()) status.add("Last reset", last_reset_cause_);
   uint64_t skipped_total = 0;
@@ -189,8 +213,46 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
   }
   status.add("Skipped frames", skipped_total);
   if (!camera_problem_.empty()) status.add("Camera problem", camera_problem_);
+  if (!calibration_mismatch_.empty()) status.add("Calibration mismatch", calibration_mismatch_);
   if (!settings_problem_.empty()) status.add("Settings problem", settings_problem_);
   if (!rejected_change_.empty()) status.add("Rejected settings change", rejected_change_);
+}
+
+std::string NodeDiagnostics::slowCameraWarning(const Context& context, uint64_t recent_resets) const {
+  if (!(context.max_gap > 0.0) || recent_resets == 0 || recent_steps_.size() < 2) return "";
+  const double interval = median(std::vector<double>(recent_steps_.begin(), recent_steps_.end()));
+  if (!(interval > context.max_gap)) return "";
+  // 20 % above the interval, so that the cameras' jitter does not reset either; rounded up to
+  // 0.1 s.
+  constexpr double kIntervalMargin = 1.2;
+  const double suggested = std::ceil(kIntervalMargin * interval * 10.0 - 1e-9) / 10.0;
+  char text[256];
+  std::snprintf(text, sizeof(text),
+                "the camera's interval of %.3g s (%.2g Hz) exceeds max_gap (%.3g s): every frame resets the "
+                "state, no output; set max_gap to at least %.1f s",
+                interval, 1.0 / interval, context.max_gap, suggested);
+  return text;
+}
+
+void NodeDiagnostics::summarize(diagnostic_updater::DiagnosticStatusWrapper& status, const Window& w, double span,
+                                const Context& context) const {
+  uint64_t recent_images = 0, recent_resets = 0;
+  for (const RecentWindow& r : recent_) {
+    recent_images += r.images;
+    recent_resets += r.resets;
+  }
+  const double step = median(w.stamp_steps);
+  const double expected_hz = step > 0.0 ? 1.0 / step : 0.0;
+  const double images_hz = w.images / span;
+  const double estimates_hz = w.estimates / span;
+  const double valid_hz = (w.estimates - w.invalid) / span;
+  const double mean_latency = w.estimates > 0 ? w.latency_sum_ms / w.estimates : 0.0;
+  const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;
+  const std::string slow_camera = slowCameraWarning(context, recent_resets);
+  // A storm: resets at a quarter of the images or more (at least kMinStormResets) within the
+  // recent span. A bag replayed in a loop resets once per loop; far fewer.
+  constexpr uint64_t kMinStormResets = 3;
+  const bool storm = recent_resets >= kMinStormResets && 4 * recent_resets >= recent_images;
 
   // The first matching line is the summary, most severe first.
   const bool input = w.images > 0 || w.unpaired_images > 0;
@@ -205,9 +267,16 @@ void NodeDiagnostics::fill(diagnostic_updater::DiagnosticStatusWrapper& status, 
                     ull(w.unpaired_images), context.image_topic.c_str(),
                     w.infos == 0 ? ("no camera_info on " + context.info_topic).c_str()
                                  : "no camera_info with the same stamp (stamps differ)");
-  } else if (w.resets >= 2 && w.resets * 2 >= w.images) {
-    status.summaryf(Level::WARN, "reset storm: %llu resets for %llu images (last: %s), %.1f Hz out",
-                    ull(w.resets), ull(w.images), last_reset_cause_.c_str(), valid_hz);
+  } else if (!slow_camera.empty()) {
+    status.summary(Level::WARN, slow_camera);
+  } else if (storm) {
+    status.summaryf(Level::WARN, "reset storm: %llu resets for %llu images in the last %.0f s (last: %s), %.1f Hz out",
+                    ull(recent_resets), ull(recent_images), kRecentSpanS, last_reset_cause_.c_str(), valid_hz);
+  } else if (w.no_texture > 0 && 2 * w.no_texture >= w.images) {
+    status.summaryf(Level::WARN, "no texture in %llu of %llu image(s) (last: %s), no output from them",
+                    ull(w.no_texture), ull(w.images), last_no_texture_reason_.c_str());
+  } else if (!calibration_mismatch_.empty()) {
+    status.summary(Level::WARN, "calibration does not fit the images, estimates invalid: " + calibration_mismatch_);
   } else if (w.skipped > 0) {
     status.summaryf(Level::WARN, "%llu of %llu frame(s) skipped (last: %s), %.1f Hz out",
                     ull(w.skipped), ull(w.images), last_skip_reason_.c_str(), valid_hz);

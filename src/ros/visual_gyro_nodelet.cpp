@@ -302,14 +302,17 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     }
     return;
   }
-  if (result.status == FrameStatus::kFrozenImage) {
+  if (result.status == FrameStatus::kFrozenImage || result.status == FrameStatus::kNoTexture) {
     NODELET_WARN_THROTTLE(10.0, "visual_gyro: %s; no estimate", result.reason.c_str());
+    if (result.status == FrameStatus::kNoTexture) health_.noTexture(result.reason);
   } else {
-    // A frozen image leaves the previous one (and its stamp) in the pipeline; so does the node.
+    // A frozen or textureless image leaves the previous one (and its stamp) in the pipeline; so
+    // does the node.
     have_previous_ = true;
     previous_stamp_ = stamp;
   }
   health_.processed();
+  reportCalibrationFit(result);
 
   if (!result.rotation.backend.empty() && result.rotation.backend != backend_used_) {
     backend_used_ = result.rotation.backend;
@@ -324,6 +327,18 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   frame.backend = backend_used_;
   frame.wall_start = wall_start;
   if (!outputs_->publish(frame, outputSettings(config))) health_.skipped("tf");
+}
+
+void VisualGyroNodelet::reportCalibrationFit(const FrameResult& result) {
+  // The verdict lasts until an estimate is valid again (or the camera changes); logged once.
+  if (result.status == FrameStatus::kCalibrationMismatch) {
+    if (health_.calibrationMismatch().empty()) {
+      NODELET_WARN("visual_gyro: calibration does not fit the images, estimates invalid: %s", result.reason.c_str());
+    }
+    health_.setCalibrationMismatch(result.reason);
+  } else if (result.hasEstimate()) {
+    health_.setCalibrationMismatch("");
+  }
 }
 
 bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const VisualGyroSettings& settings,
@@ -355,6 +370,7 @@ bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const VisualG
                               camera.height(), camera.fx());
       }
       if (have_previous_) resetState("camera_info changed");
+      health_.setCalibrationMismatch("");
       camera_ = camera;
       have_camera_ = true;
       have_failed_camera_ = false;
@@ -392,6 +408,7 @@ void VisualGyroNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
   {
     std::lock_guard<std::mutex> lock(config_mutex_);
     context.method = have_config_ ? config_.method : std::string();
+    context.max_gap = have_config_ ? config_.max_gap : 0.0;
   }
   const std::pair<uint64_t, uint64_t> probed = probe_->take();
   health_.probedInput(probed.first, probed.second);

@@ -94,6 +94,9 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   /// changes) with `settings` (version `config_version`); false (frame skipped) when the camera is
   /// unusable.
   bool preparePipeline(const CameraModel& camera, const VisualGyroSettings& settings, uint64_t config_version);
+  /// Keeps the diagnostics' calibration verdict (a WARN while the pipeline says the calibration
+  /// does not fit the images) up to date with `result`.
+  void reportCalibrationFit(const FrameResult& result);
   /// Forgets the previous frame, the integrated orientation and the yaw plot; `cause` is counted.
   void resetState(const std::string& cause);
   /// Skips a frame whose camera model is unusable (`why`): a throttled error, kept for the

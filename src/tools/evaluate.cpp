@@ -254,7 +254,7 @@ int run(int argc, char** argv) {
   std::vector<eval::MethodSummary> summaries;
   for (const std::string& method : o.methods) {
     const std::unique_ptr<eval::MethodRunner> runner =
-        eval::makeRunner(method, settings, base, refined_positions, matchFootprint(seq.camera));
+        eval::makeRunner(method, settings, base, refined_positions, matchFootprint(seq.camera), 1.0 / seq.camera.fx());
     summaries.push_back(eval::evaluateMethod(method, runner.get(), pairs));
     summaries.back().front_end = o.pairs.front_end;
     if (o.pairs.front_end == "native") summaries.back().matching = findSetting("matching")->text(settings);

@@ -27,6 +27,7 @@
 
 #include "ros_test_support.h"
 #include "visual_gyro/RotationEstimate.h"
+#include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/renderer.h"
 
 namespace {
@@ -197,6 +198,42 @@ TEST(ReliabilityRos, FrozenFrameNeverGivesAValidImu) {
   EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "camera frozen?", 3.0));
 }
 
+TEST(ReliabilityRos, BlackAndWhiteStreamsHaveNoTextureNotAFrozenCamera) {
+  Harness& h = *g_harness;
+  const double t0 = 250.0;
+  for (const int grey : {0, 255}) {
+    h.clear();
+    const cv::Mat flat(turn()[0].size(), CV_8UC1, cv::Scalar(grey));
+    // From the stream's first frame on; then after a textured frame, which stays the previous one.
+    for (int k = 0; k < 3; ++k) EXPECT_TRUE(h.send(flat, t0 + 10.0 * (grey > 0) + 0.1 * k));
+    ASSERT_TRUE(h.send(turn()[0], t0 + 10.0 * (grey > 0) + 0.3));
+    for (int k = 4; k < 12; ++k) EXPECT_TRUE(h.send(flat, t0 + 10.0 * (grey > 0) + 0.1 * k));
+    h.settle();
+    EXPECT_TRUE(h.imus().empty()) << "an Imu from a textureless frame";
+    const auto rotations = h.rotations();
+    ASSERT_EQ(rotations.size(), 8u) << "grey " << grey;
+    for (const auto& r : rotations) {
+      EXPECT_FALSE(r.valid);
+      EXPECT_EQ(r.status.rfind("no_texture: image has no texture", 0), 0u) << r.status;
+    }
+    EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "no texture in", 3.0)) << "grey " << grey;
+  }
+}
+
+// A camera slower than ~max_gap (0.8 Hz with the default 1 s): every frame resets, nothing is
+// published, and /diagnostics says why and what max_gap would do. The stamps are 1.25 s apart;
+// the frames are sent faster (the node judges gaps by the stamps).
+TEST(ReliabilityRos, CameraSlowerThanMaxGapSaysWhichMaxGapWould) {
+  Harness& h = *g_harness;
+  h.clear();
+  for (int k = 0; k < 8; ++k) h.send(turn()[k], 280.0 + 1.25 * k, 0.3);
+  h.settle();
+  EXPECT_TRUE(h.rotations().empty());
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "exceeds max_gap (1 s): every frame resets the state, no output; "
+                                            "set max_gap to at least 1.5 s",
+                               3.0));
+}
+
 TEST(ReliabilityRos, Mono16RecoversOnTheNextNormalFrame) {
   Harness& h = *g_harness;
   h.clear();
@@ -229,6 +266,24 @@ TEST(ReliabilityRos, ImplausibleCalibrationIsAnErrorWithNoOutput) {
       {"principal point outside", [](sensor_msgs::CameraInfo* i) { i->K[2] = 5000.0; }, "principal point"},
       {"folding distortion", [](sensor_msgs::CameraInfo* i) { i->D = {-1.0, 0, 0, 0, 0}; }, "fold"},
       {"binning 1e6", [](sensor_msgs::CameraInfo* i) { i->binning_x = 1000000; }, "binning"},
+      // Calibrations that gave confident, wrong rates on KITTI frames (the rendered camera's
+      // corners lie about as far off axis as KITTI's).
+      {"plumb_bob k1 = 5", [](sensor_msgs::CameraInfo* i) { i->D = {5.0, 0, 0, 0, 0}; },
+       "plumb_bob distortion shrinks the field of view"},
+      {"equidistant k1 = 3",
+       [](sensor_msgs::CameraInfo* i) {
+         i->distortion_model = "equidistant";
+         i->D = {3.0, 0, 0, 0};
+       },
+       "equidistant distortion shrinks the field of view"},
+      {"D = [50, -300, 1, 1, 900]", [](sensor_msgs::CameraInfo* i) { i->D = {50.0, -300.0, 1.0, 1.0, 900.0}; },
+       "distortion"},
+      {"principal point at the image corner",
+       [](sensor_msgs::CameraInfo* i) {
+         i->K[2] = i->width - 1.0;
+         i->K[5] = i->height - 1.0;
+       },
+       "outside its central 60 %"},
   };
   double t = 400.0;
   for (const Case& c : cases) {
@@ -245,6 +300,44 @@ TEST(ReliabilityRos, ImplausibleCalibrationIsAnErrorWithNoOutput) {
   // A good camera again: outputs come back.
   ASSERT_TRUE(h.send(turn()[0], t));
   ASSERT_TRUE(h.send(turn()[1], t + 0.1));
+}
+
+// A calibration plausible by itself (plumb_bob k1 = 0.3) that the rendered images do not have: once
+// the calibration check has seen enough frames, estimates are invalid (no Imu) and /diagnostics
+// names camera_info; a fitting camera_info brings valid estimates back.
+TEST(ReliabilityRos, CalibrationThatDoesNotFitTheImagesWarnsAndInvalidates) {
+  Harness& h = *g_harness;
+  h.clear();
+  sensor_msgs::CameraInfo info = h.info();
+  info.D = {0.3, 0.0, 0.0, 0.0, 0.0};
+  // The views turn right and back (1 deg per frame).
+  auto view = [](int k) { return turn()[k % 22 < 12 ? k % 22 : 22 - k % 22]; };
+  double t = 520.0;
+  for (int k = 0; k < 30; ++k, t += 0.1) ASSERT_TRUE(h.send(view(k), t, 5.0, enc::MONO8, true, &info));
+  h.settle();
+  const auto rotations = h.rotations();
+  ASSERT_EQ(rotations.size(), 29u);
+  size_t valid = 0, mismatched = 0;
+  for (const auto& r : rotations) {
+    valid += r.valid;
+    mismatched += r.status.rfind("calibration_mismatch: ", 0) == 0;
+  }
+  EXPECT_EQ(valid, visual_gyro::kFitWindowFrames - 1) << "valid until the check has judged a full window";
+  EXPECT_EQ(mismatched, rotations.size() - valid);
+  EXPECT_FALSE(rotations.back().valid);
+  EXPECT_NE(rotations.back().status.find("camera_info's distortion or intrinsics may not fit the images"),
+            std::string::npos)
+      << rotations.back().status;
+  EXPECT_EQ(h.imus().size(), valid) << "an Imu from an invalidated estimate";
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "calibration does not fit the images, estimates invalid", 3.0));
+  EXPECT_EQ(h.logLines("calibration does not fit the images"), 1) << "logged more than once";
+  // The camera's own calibration: the check starts afresh, estimates are valid.
+  h.clear();
+  t += 10.0;
+  for (int k = 0; k < 3; ++k, t += 0.1) ASSERT_TRUE(h.send(view(k), t));
+  h.settle();
+  ASSERT_EQ(h.rotations().size(), 2u);
+  for (const auto& r : h.rotations()) EXPECT_TRUE(r.valid) << r.status;
 }
 
 TEST(ReliabilityRos, CameraInfoChangingEveryFrameIsAResetStorm) {
