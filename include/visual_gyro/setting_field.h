@@ -62,12 +62,17 @@ struct SettingSpec {
   /// "" when `v` (written `text`) is an accepted number, else a message naming the setting, its
   /// value and what is accepted.
   std::string checkNumber(double v, const std::string& text) const {
-    if (has_special && v == special) return "";
-    if (std::isfinite(v) && (min_exclusive ? v > min : v >= min) && v <= max) return "";
+    if (acceptsNumber(v)) return "";
     const std::string special_text = has_special ? formatNumber(special) + " (" + special_doc + ") or " : "";
     return name + (type == SettingType::kDoubleList ? " must hold numbers " : " must be ") + special_text + "in " +
            (min_exclusive ? "(" : "[") + formatNumber(min) + ", " + formatNumber(max) + "]" +
            (unit.empty() ? "" : " " + unit) + ", got " + text;
+  }
+
+  /// true when `v` is in the range or the special value (never NaN or an infinity). Allocates
+  /// nothing, so that a per-frame validation of the settings stays allocation-free.
+  bool acceptsNumber(double v) const {
+    return (has_special && v == special) || (std::isfinite(v) && (min_exclusive ? v > min : v >= min) && v <= max);
   }
 
   /// "" when `text` is one of the choices (or there are none), else a message naming the setting.
@@ -119,6 +124,22 @@ struct SettingSpec {
   }
 };
 
+/// The numbers of a setting's value, without a copy: one for kInt, kDouble, kBool (0/1), the
+/// elements of a kDoubleList (pointing into the settings, so valid while they are), none for text.
+/// A view rather than a std::vector so that reading them allocates nothing: the front end and the
+/// estimator validate their settings on every call.
+struct SettingNumbers {
+  double single = 0.0;
+  bool has_single = false;
+  const std::vector<double>* list = nullptr;  ///< kDoubleList: the member itself
+
+  static SettingNumbers none() { return {}; }
+  static SettingNumbers one(double v) { return {v, true, nullptr}; }
+  static SettingNumbers of(const std::vector<double>& values) { return {0.0, false, &values}; }
+  const double* begin() const { return list != nullptr ? list->data() : &single; }
+  const double* end() const { return list != nullptr ? list->data() + list->size() : &single + (has_single ? 1 : 0); }
+};
+
 /// One setting of a settings struct S: its spec and the code that reads and writes it.
 template <class S>
 struct SettingField : SettingSpec {
@@ -128,18 +149,19 @@ struct SettingField : SettingSpec {
   /// Parses `value` and stores it; returns "" or why the text is not a value of this type. The
   /// range is checked by checkRange, not here, so that a caller can report it separately.
   std::function<std::string(S*, const std::string&)> parse;
-  /// The value as numbers: one for kInt, kDouble, kBool (0/1), the elements of kDoubleList, none
-  /// for text.
-  std::function<std::vector<double>(const S&)> numbers;
+  /// The value as numbers (SettingNumbers: one for kInt, kDouble, kBool, the elements of
+  /// kDoubleList, none for text).
+  std::function<SettingNumbers(const S&)> numbers;
 
   /// "" when the value in `settings` is accepted (checkNumber, checkChoice), else a message naming
-  /// the setting, its value, what is accepted and the unit.
+  /// the setting, its value, what is accepted and the unit. An accepted value allocates nothing
+  /// (the message and the value's text are built only for a refused one).
   std::string checkRange(const S& settings) const {
-    if (type == SettingType::kString) return checkChoice(text(settings));
+    if (type == SettingType::kString) return choices.empty() ? std::string() : checkChoice(text(settings));
     if (type == SettingType::kBool) return "";
     for (const double v : numbers(settings)) {
-      const std::string why = checkNumber(v, type == SettingType::kDoubleList ? text(settings) : formatNumber(v));
-      if (!why.empty()) return why;
+      if (acceptsNumber(v)) continue;
+      return checkNumber(v, type == SettingType::kDoubleList ? text(settings) : formatNumber(v));
     }
     return "";
   }
@@ -222,7 +244,7 @@ SettingField<S> doubleField(std::string name, double S::*member, double min, dou
   f.unit = std::move(unit);
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return SettingField<S>::formatNumber(s.*member); };
-  f.numbers = [member](const S& s) { return std::vector<double>{s.*member}; };
+  f.numbers = [member](const S& s) { return SettingNumbers::one(s.*member); };
   f.parse = [member](S* s, const std::string& v) {
     double x = 0.0;
     const std::string why = setting_detail::parseReal(v, &x);
@@ -244,7 +266,7 @@ SettingField<S> intField(std::string name, Int S::*member, long long min, long l
   f.unit = std::move(unit);
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return std::to_string(s.*member); };
-  f.numbers = [member](const S& s) { return std::vector<double>{static_cast<double>(s.*member)}; };
+  f.numbers = [member](const S& s) { return SettingNumbers::one(static_cast<double>(s.*member)); };
   f.parse = [member](S* s, const std::string& v) {
     long long x = 0;
     // Parsed within the member type's range; the setting's range is checked separately.
@@ -268,7 +290,7 @@ SettingField<S> boolField(std::string name, bool S::*member, std::string doc) {
   f.max = 1;
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return std::string(s.*member ? "true" : "false"); };
-  f.numbers = [member](const S& s) { return std::vector<double>{s.*member ? 1.0 : 0.0}; };
+  f.numbers = [member](const S& s) { return SettingNumbers::one(s.*member ? 1.0 : 0.0); };
   f.parse = [member](S* s, const std::string& v) {
     bool x = false;
     const std::string why = setting_detail::parseBoolean(v, &x);
@@ -288,7 +310,7 @@ SettingField<S> stringField(std::string name, std::string S::*member, std::vecto
   f.choices = std::move(choices);
   f.doc = std::move(doc);
   f.text = [member](const S& s) { return s.*member; };
-  f.numbers = [](const S&) { return std::vector<double>(); };
+  f.numbers = [](const S&) { return SettingNumbers::none(); };
   f.parse = [member](S* s, const std::string& v) {
     s->*member = v;
     return std::string();
@@ -313,7 +335,7 @@ SettingField<S> doubleListField(std::string name, std::vector<double> S::*member
     for (const double v : s.*member) items.push_back(SettingField<S>::formatNumber(v));
     return "[" + SettingSpec::joined(items, ", ") + "]";
   };
-  f.numbers = [member](const S& s) { return s.*member; };
+  f.numbers = [member](const S& s) { return SettingNumbers::of(s.*member); };
   f.parse = [member](S* s, const std::string& v) {
     std::vector<double> x;
     const std::string why = setting_detail::parseRealList(v, &x);
@@ -337,7 +359,7 @@ SettingField<S> enumField(std::string name, E S::*member, std::vector<std::pair<
       if (n.second == s.*member) return n.first;
     return std::string("?");
   };
-  f.numbers = [](const S&) { return std::vector<double>(); };
+  f.numbers = [](const S&) { return SettingNumbers::none(); };
   const SettingSpec spec = f;
   f.parse = [member, names, spec](S* s, const std::string& v) {
     for (const auto& n : names) {
