@@ -776,16 +776,22 @@ std::vector<std::map<std::string, std::string>> readFrameRows(const std::string&
 constexpr double kFarBeyondFactor = 4.0;
 
 /// Normalised squared errors of the valid frames of a static camera: the estimate's error against
-/// the gyro, less the gyro's constant bias (the mean error), over the covariance's per-axis
-/// variances (the CSV gives the diagonal). There is no pose truth to judge the covariance by.
+/// the gyro (which evaluate has already de-biased and aligned), less any constant error left (the
+/// mean error), over the covariance's per-axis variances (the CSV gives the diagonal). There is no
+/// pose truth to judge the covariance by.
 std::vector<double> staticNormalisedErrors(const std::vector<std::map<std::string, std::string>>& rows) {
   std::vector<std::array<double, 6>> frames;  // error x y z, sigma x y z [deg]
   for (const auto& row : rows) {
     if (row.at("valid") != "1") continue;
     std::array<double, 6> f{};
     const char* keys[6] = {"err_x_deg", "err_y_deg", "err_z_deg", "sigma_x_deg", "sigma_y_deg", "sigma_z_deg"};
-    for (int k = 0; k < 6; ++k) f[k] = std::stod(row.at(keys[k]));
-    frames.push_back(f);
+    bool complete = true;  // a frame the aligned gyro does not cover has no error to judge
+    for (int k = 0; k < 6; ++k) {
+      const std::string& cell = row.at(keys[k]);
+      complete = complete && !cell.empty();
+      if (complete) f[k] = std::stod(cell);
+    }
+    if (complete) frames.push_back(f);
   }
   std::array<double, 3> bias{};
   for (const auto& f : frames)
