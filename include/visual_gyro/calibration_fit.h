@@ -33,8 +33,8 @@ constexpr size_t kFitMaxMatches = 400;
 /// Frames (with a judged correlation) over which the calibration is judged.
 constexpr size_t kFitWindowFrames = 20;
 /// Median correlation over the window from which the calibration does not fit. Measured with
-/// evaluate's residual_correlation (vote, default settings, CPU; Intel Xeon @ 2.80 GHz, 2026-12-04), largest
-/// 20-frame median: shared sequences 0.28 (euroc_mh01_shake), 0.17 (kitti_turn), 0.06 and 0.04;
+/// evaluate's residual_correlation (vote, default settings, CPU; Intel Xeon @ 2.80 GHz,
+/// 2026-12-04), largest 20-frame median: shared sequences 0.28 (euroc_mh01_shake), 0.17 (kitti_turn), 0.06 and 0.04;
 /// rendered sequences (five presets, 320x240, noise 8, blur 15 px, JPEG 30) 0.10 at most; kitti_turn,
 /// kitti_straight and euroc_mh01_shake at 10 % contrast with noise 3, 5 % contrast, noise 8 or
 /// JPEG 20: 0.23 at most. Calibrations that do not fit: euroc_mh01_shake without its distortion
