@@ -87,6 +87,14 @@ void OutputRecorder::subscribeOutputs() {
       });
 }
 
+OutputRecorder::~OutputRecorder() {
+  // Subscriber::shutdown waits for a callback in progress, so after these no callback touches
+  // the members below.
+  unsubscribeOutputs();
+  diag_sub_.shutdown();
+  rosout_sub_.shutdown();
+}
+
 void OutputRecorder::unsubscribeOutputs() {
   imu_sub_.shutdown();
   rotation_sub_.shutdown();

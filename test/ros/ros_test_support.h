@@ -44,6 +44,11 @@ sensor_msgs::Image imageMsg(const cv::Mat& image, const std::string& encoding, d
 class OutputRecorder {
  public:
   explicit OutputRecorder(std::string ns) : ns_(std::move(ns)) {}
+  /// Shuts every subscription down before the kept messages go: a callback still running on a
+  /// spinner thread would otherwise write into freed vectors.
+  virtual ~OutputRecorder();
+  OutputRecorder(const OutputRecorder&) = delete;
+  OutputRecorder& operator=(const OutputRecorder&) = delete;
 
   void subscribeOutputs();
   void unsubscribeOutputs();
