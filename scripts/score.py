@@ -38,6 +38,12 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 METRICS_HEADER = os.path.join(REPO, "src", "eval", "metrics.h")
 SPREAD_FLOOR = 1e-3
 REFERENCE_METHOD = "vote"
+ABLATION_PREFIX = "vote-without-"
+
+
+def is_ablation(method):
+    """vote-without-<part>: the vote method with one part off (evaluate --list-ablations)."""
+    return method.startswith(ABLATION_PREFIX)
 
 
 def chi_square_bound(header=METRICS_HEADER):
@@ -107,11 +113,19 @@ def summarise(seeded_runs, debias, bound):
     }
 
 
+def is_peer(method, other):
+    """Whether `other` counts among `method`'s peers: every other method, but never an ablation
+    (vote without one part), and the vote method is no peer of its own ablations."""
+    if other == method or is_ablation(other):
+        return False
+    return not (is_ablation(method) and other == REFERENCE_METHOD)
+
+
 def ratios_to_best_peer(rmse_by_method):
-    """Per method: its RMSE over the least RMSE of the other methods (NaN without a peer)."""
+    """Per method: its RMSE over the least RMSE of its peers (NaN without a peer)."""
     out = {}
     for m, value in rmse_by_method.items():
-        peers = [v for p, v in rmse_by_method.items() if p != m and math.isfinite(v)]
+        peers = [v for p, v in rmse_by_method.items() if is_peer(m, p) and math.isfinite(v)]
         out[m] = value / max(min(peers), 1e-12) if peers and math.isfinite(value) else math.nan
     return out
 
@@ -154,10 +168,50 @@ def seed_spread(per_case, seeds, method=REFERENCE_METHOD):
             "per_case_rmse_geomean": geomean(case_spreads)}
 
 
+def ablation_rows(methods, per_case, per_method, spread):
+    """Per ablation: its score beside vote's, its RMSE over vote's per case (geometric mean, worst),
+    its pooled NEES, and a verdict: the part pays when removing it worsens the geometric mean vs the
+    best peer by more than the seed-to-seed spread ((max - min) / pooled, times vote's geomean)."""
+    vote = per_method.get(REFERENCE_METHOD, {}).get("geomean", math.nan)
+    margin = spread["relative"] * vote if math.isfinite(spread["relative"]) else 0.0
+    rows = []
+    for m in methods:
+        if not is_ablation(m):
+            continue
+        vs_vote = {c: f[m]["rmse"] / max(f[REFERENCE_METHOD]["rmse"], 1e-12)
+                   for c, f in per_case.items() if m in f and REFERENCE_METHOD in f}
+        nees = [f[m]["nees_mean"] for f in per_case.values() if m in f and math.isfinite(f[m]["nees_mean"])]
+        beyond = [f[m]["nees_beyond99"] for f in per_case.values() if m in f and math.isfinite(f[m]["nees_beyond99"])]
+        g = per_method[m]["geomean"]
+        verdict = ("pays" if g - vote > margin else "costs" if vote - g > margin else "within the spread")
+        rows.append({"part": m[len(ABLATION_PREFIX):], "geomean": g, "worst": per_method[m]["worst"],
+                     "vs_vote": over_cases(vs_vote), "nees_mean": float(np.mean(nees)) if nees else math.nan,
+                     "nees_beyond99": float(np.mean(beyond)) if beyond else math.nan, "verdict": verdict})
+    return rows
+
+
 def fmt(value, digits=3):
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
     return f"{value:.{digits}f}"
+
+
+def ablation_markdown(rows, per_case, per_method):
+    if not rows:
+        return []
+    nees = [f[REFERENCE_METHOD]["nees_mean"] for f in per_case.values()
+            if REFERENCE_METHOD in f and math.isfinite(f[REFERENCE_METHOD]["nees_mean"])]
+    vote = per_method.get(REFERENCE_METHOD, {})
+    lines = ["## Ablation: vote without one part", "",
+             "| without | geometric mean vs best peer | worst | RMSE / vote's: geometric mean | worst (case) "
+             "| NEES mean over cases | verdict |", "|---|---|---|---|---|---|---|",
+             f"| (nothing: vote) | {fmt(vote.get('geomean', math.nan))} | {fmt(vote.get('worst', math.nan))} | 1 | 1 "
+             f"| {fmt(float(np.mean(nees)) if nees else math.nan, 2)} | |"]
+    for r in rows:
+        lines.append(f"| {r['part']} | {fmt(r['geomean'])} | {fmt(r['worst'])} | {fmt(r['vs_vote']['geomean'])} "
+                     f"| {fmt(r['vs_vote']['worst'], 2)} ({r['vs_vote']['worst_case']}) | {fmt(r['nees_mean'], 2)} "
+                     f"| {r['verdict']} |")
+    return lines + [""]
 
 
 def write_markdown(path, header, cases, methods, per_case, ratios, per_method, spread, notes):
@@ -171,6 +225,7 @@ def write_markdown(path, header, cases, methods, per_case, ratios, per_method, s
               f"seed alone {', '.join(fmt(g) for g in spread['geomean_per_seed']) or '-'}, (max - min) / pooled "
               f"{fmt(spread['relative'])}; per case (max - min) / mean of the seeds' RMSE, geometric mean over cases "
               f"{fmt(spread['per_case_rmse_geomean'])}.", ""]
+    lines += ablation_markdown(ablation_rows(methods, per_case, per_method, spread), per_case, per_method)
     lines += ["## Ratio to the best other method, per case", "",
               "| case | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
     for c in cases:
@@ -263,7 +318,7 @@ def main():
                 runs[case][method].append((seed, run))
     if not cases:
         sys.exit("[score] no results")
-    methods = sorted({m for c in cases for m in runs[c]}, key=lambda m: (m != REFERENCE_METHOD, m))
+    methods = sorted({m for c in cases for m in runs[c]}, key=lambda m: (m != REFERENCE_METHOD, is_ablation(m), m))
     per_case = {c: {m: summarise(runs[c][m], debias[c], bound) for m in runs[c]} for c in cases}
     ratios = {c: ratios_to_best_peer({m: f["rmse"] for m, f in per_case[c].items()}) for c in cases}
     per_method = {m: over_cases({c: ratios[c].get(m, math.nan) for c in cases}) for m in methods}
@@ -274,18 +329,24 @@ def main():
               f"estimator seeds {', '.join(seeds)} pooled.", *args.note]
     write_markdown(os.path.join(args.out, "score.md"), header, cases, methods, per_case, ratios, per_method, spread, notes)
     write_csv(os.path.join(args.out, "score.csv"), cases, methods, per_case, ratios)
-    write_plot(os.path.join(args.out, "score.png"), cases, methods, ratios,
+    write_plot(os.path.join(args.out, "score.png"), cases, [m for m in methods if not is_ablation(m)], ratios,
                f"make score: {len(cases)} cases, seeds {','.join(seeds)} ({args.machine}, {args.date})")
     vote = per_method.get(REFERENCE_METHOD, {"geomean": math.nan, "worst": math.nan, "worst_case": ""})
     clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else (round(v, 4) if isinstance(v, float) else v)
     summary = {
         "cases": len(cases),
         "vote_vs_best_peer": {k: clean(v) for k, v in vote.items()},
-        "per_method": {m: {k: clean(v) for k, v in s.items()} for m, s in per_method.items()},
+        "per_method": {m: {k: clean(v) for k, v in s.items()} for m, s in per_method.items() if not is_ablation(m)},
         "seed_spread": {"seeds": spread["seeds"], "relative": clean(spread["relative"]),
                         "geomean_per_seed": [clean(g) for g in spread["geomean_per_seed"]],
                         "per_case_rmse_geomean": clean(spread["per_case_rmse_geomean"])},
     }
+    ablation = ablation_rows(methods, per_case, per_method, spread)
+    if ablation:
+        summary["ablation"] = {r["part"]: {"geomean": clean(r["geomean"]), "worst": clean(r["worst"]),
+                                           "vs_vote_geomean": clean(r["vs_vote"]["geomean"]),
+                                           "nees_mean": clean(r["nees_mean"]), "verdict": r["verdict"]}
+                               for r in ablation}
     line = json.dumps(summary)
     with open(os.path.join(args.out, "score.json"), "w") as f:
         f.write(line + "\n")

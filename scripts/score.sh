@@ -13,6 +13,9 @@
 # (default 31, so 30 pairs). Renders are made once into out/score/rendered and reused
 # while the render command and the render_sequence program are unchanged.
 # SCORE_QUICK=1: a smoke run (one seed, 6 pairs per case, 8-frame renders).
+# SCORE_ABLATION=1: also the vote method without each of its parts (`evaluate --list-ablations`),
+# on the same matches; score.md then holds the ablation table. SCORE_METHODS: a comma-separated
+# list instead of `evaluate --list-methods`.
 # SCORE_SEEDS, SCORE_FRAMES, SCORE_RENDER_FRAMES, SCORE_BACKEND (cpu; auto uses CUDA where it
 # works), SCORE_OUT override.
 set -euo pipefail
@@ -44,7 +47,10 @@ if ! "${PY}" -c 'import matplotlib, numpy' 2>/dev/null; then
   exit 1
 fi
 
-METHODS="$("${EVAL}" --list-methods)"
+METHODS="${SCORE_METHODS:-$("${EVAL}" --list-methods)}"
+if [[ ${SCORE_ABLATION:-0} == 1 ]]; then
+  METHODS="${METHODS},$("${EVAL}" --list-ablations)"
+fi
 mkdir -p "${OUT}/logs" "${OUT}/csv" "${OUT}/rendered"
 rm -f "${OUT}"/csv/*.csv "${OUT}"/logs/eval_*.log
 MANIFEST="${OUT}/manifest.tsv"

@@ -95,6 +95,29 @@ class ScoreArithmetic(unittest.TestCase):
         self.assertAlmostEqual(spread["per_case_rmse_geomean"], math.sqrt((1 / 1.5) * score.SPREAD_FLOOR))
         self.assertTrue(math.isnan(score.seed_spread(per_case, ["1"])["relative"]))
 
+    def test_ablations_are_nobodys_peer_and_vote_is_not_theirs(self):
+        rmse = {"vote": 1.0, "a": 2.0, "vote-without-valley": 0.5}
+        ratios = score.ratios_to_best_peer(rmse)
+        self.assertAlmostEqual(ratios["vote"], 0.5)  # against a, not against its own ablation
+        self.assertAlmostEqual(ratios["a"], 2.0)
+        self.assertAlmostEqual(ratios["vote-without-valley"], 0.25)  # against a, not against vote
+
+    def test_ablation_verdict_against_the_seed_spread(self):
+        def case(vote, without_x, without_y, peer):
+            f = lambda r: {"rmse": r, "nees_mean": 2.0, "nees_beyond99": 0.01}
+            return {"vote": f(vote), "vote-without-x": f(without_x), "vote-without-y": f(without_y), "a": f(peer)}
+        per_case = {"c1": case(1.0, 2.0, 1.01, 2.0), "c2": case(1.0, 1.5, 0.99, 2.0)}
+        methods = ["vote", "a", "vote-without-x", "vote-without-y"]
+        ratios = {c: score.ratios_to_best_peer({m: f["rmse"] for m, f in v.items()}) for c, v in per_case.items()}
+        per_method = {m: score.over_cases({c: ratios[c][m] for c in per_case}) for m in methods}
+        rows = score.ablation_rows(methods, per_case, per_method, {"relative": 0.1})
+        by_part = {r["part"]: r for r in rows}
+        self.assertEqual(set(by_part), {"x", "y"})
+        self.assertEqual(by_part["x"]["verdict"], "pays")  # geomean 0.87 against vote's 0.5
+        self.assertAlmostEqual(by_part["x"]["vs_vote"]["geomean"], math.sqrt(2.0 * 1.5))
+        self.assertEqual(by_part["x"]["vs_vote"]["worst_case"], "c1")
+        self.assertEqual(by_part["y"]["verdict"], "within the spread")
+
 
 if __name__ == "__main__":
     output = [a for a in sys.argv[1:] if a.startswith("--gtest_output=xml:")]

@@ -258,6 +258,28 @@ class PriorTracker {
 
 /// Estimates the frame-to-frame rotation from matched unit bearings. Not thread-safe; one per
 /// stream of frames. Never throws on bad input: it returns an invalid result whose status names the problem.
+/// Parts of the vote method that can be switched off one at a time, to measure on `make score`
+/// what each earns (evaluate's `vote-without-<part>` methods; doc/evaluation.md's ablation).
+/// Every part is on unless RotationEstimator::setDisabledParts says otherwise; not a setting.
+enum class VotePart : uint8_t {
+  kWideVote,          ///< the prior-free wide vote when the narrow one explains too few matches
+  kPriorCandidate,    ///< the prior itself as a candidate
+  kIdentityCandidate, ///< no rotation as a candidate
+  kRefineContenders,  ///< refining every comparable candidate, not only the best-verified one
+  kPreviousMotion,    ///< the refinement from the prior rotation and the previous translation
+  kReverify,          ///< the re-verification of the refined winner with a tighter gate
+  kValley,            ///< the search along the rotation/translation valley of a close scene
+  kRestarts,          ///< refinements from nine translation directions when too few are explained
+  kDescent,           ///< the descent on the truncated cost under the same condition
+  kRefitJackknife,    ///< the covariance's refits without each group (many near misses)
+  kContenderSpread,   ///< the covariance's spread of the competing refined candidates
+  kCount
+};
+/// The part's name in `vote-without-<name>` ("wide_vote", "prior_candidate", ...).
+const char* votePartName(VotePart part);
+/// Parses a votePartName(); false when `name` names no part.
+bool parseVotePart(const std::string& name, VotePart* part);
+
 class RotationEstimator {
  public:
   /// Uses `voter` for the hypotheses; see createRotationEstimator for the usual way to make one.
@@ -290,6 +312,11 @@ class RotationEstimator {
   /// default: unknown, no such check. A value that is not finite and positive counts as 0.
   void setMatchFootprint(double angle) { match_footprint_ = std::isfinite(angle) && angle > 0.0 ? angle : 0.0; }
   double matchFootprint() const { return match_footprint_; }
+  /// Switches parts of the vote method off (bit k: VotePart k off); 0, the default, runs them all.
+  /// Only for measuring what each part earns.
+  void setDisabledParts(uint32_t mask) { disabled_parts_ = mask; }
+  /// Whether `part` runs.
+  bool partEnabled(VotePart part) const { return (disabled_parts_ >> static_cast<int>(part) & 1u) == 0; }
   const EstimatorSettings& settings() const { return settings_; }
   /// "cpu" or "cuda".
   std::string backendName() const;
@@ -308,6 +335,7 @@ class RotationEstimator {
   EstimatorSettings settings_;
   bool refined_positions_ = false;
   double match_footprint_ = 0.0;
+  uint32_t disabled_parts_ = 0;
   std::unique_ptr<HypothesisVoter> voter_;
   double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
   double vote_device_ms_ = 0.0;  // this frame's kernel time so far

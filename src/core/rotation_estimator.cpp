@@ -183,6 +183,34 @@ void RotationResult::invalidate(FrameStatus why, const std::string& details) {
   covariance.setIdentity();
 }
 
+const char* votePartName(VotePart part) {
+  switch (part) {
+    case VotePart::kWideVote: return "wide_vote";
+    case VotePart::kPriorCandidate: return "prior_candidate";
+    case VotePart::kIdentityCandidate: return "identity_candidate";
+    case VotePart::kRefineContenders: return "refine_contenders";
+    case VotePart::kPreviousMotion: return "previous_motion";
+    case VotePart::kReverify: return "reverify";
+    case VotePart::kValley: return "valley";
+    case VotePart::kRestarts: return "restarts";
+    case VotePart::kDescent: return "descent";
+    case VotePart::kRefitJackknife: return "refit_jackknife";
+    case VotePart::kContenderSpread: return "contender_spread";
+    case VotePart::kCount: break;
+  }
+  return "";
+}
+
+bool parseVotePart(const std::string& name, VotePart* part) {
+  for (int k = 0; k < static_cast<int>(VotePart::kCount); ++k) {
+    if (name == votePartName(static_cast<VotePart>(k))) {
+      *part = static_cast<VotePart>(k);
+      return true;
+    }
+  }
+  return false;
+}
+
 const char* methodName(EstimationMethod method) {
   return method == EstimationMethod::kPaper ? "paper" : "vote";
 }
@@ -506,7 +534,8 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, Eigen::Matrix
 // effective_matches, the inliers over the scale.
 Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
                                  const std::vector<RefinedRotation>& contenders, double threshold,
-                                 int iterations, bool refined_positions, VoteDiagnostics* diagnostics) {
+                                 int iterations, bool refined_positions, bool refit_jackknife,
+                                 bool contender_spread, VoteDiagnostics* diagnostics) {
   double inflation = std::max(1.0, winner.inliers / kIntegerPositionsEffectiveMatches);
   JackknifeSpread jack, refit;
   if (refined_positions) {
@@ -519,7 +548,7 @@ Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matc
     // which of them it keeps moves the solution as much as the inliers' own errors do, and the
     // refits without each group, choosing their inliers anew, show by how much.
     diagnostics->near_miss_share = jack.near_miss_share;
-    if (diagnostics->near_miss_share >= kRefitNearMissShare && lu.isInvertible()) {
+    if (refit_jackknife && diagnostics->near_miss_share >= kRefitNearMissShare && lu.isInvertible()) {
       refit = refitJackknifeSpread(matches, refit_matches, winner, threshold, iterations);
       diagnostics->refit_jackknife = refit.groups > 0;
       if (refit.groups > 0) inflation = std::max(inflation, (lu.inverse() * refit.covariance).trace() / 3.0);
@@ -541,6 +570,7 @@ Eigen::Matrix3d honestCovariance(FrameMatches& matches, FrameMatches* refit_matc
   Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   double weights = 1.0;
   for (const RefinedRotation& c : contenders) {
+    if (!contender_spread) break;
     const Eigen::Vector3d d = so3Log(winner.rotation.transpose() * c.rotation);
     if (d.norm() < 1e-9) continue;  // converged to the winner itself
     const double z = (winner.inliers - c.inliers) / std::sqrt(std::max(1, winner.inliers));
@@ -638,10 +668,11 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
       consider(c.rotation_vector, narrow ? "narrow" : "wide");
     // The prior, and no rotation at all, are candidates too: under strong translation every
     // rotation-only triple is biased, and the truth is usually closer to one of them.
-    if (narrow && prior_usable) consider(prior.rotation_vector, "prior");
-    if (narrow) consider(Eigen::Vector3d::Zero(), "identity");
+    if (narrow && prior_usable && partEnabled(VotePart::kPriorCandidate)) consider(prior.rotation_vector, "prior");
+    if (narrow && partEnabled(VotePart::kIdentityCandidate)) consider(Eigen::Vector3d::Zero(), "identity");
     const bool prior_unchallenged = prior_usable && best_verified_is_prior;
     if (best_verified >= needed && result.winning_votes >= settings_.min_votes && !prior_unchallenged) break;
+    if (!partEnabled(VotePart::kWideVote)) break;
   }
   if (best_verified == 0) return invalidResult(FrameStatus::kDegenerate, "no candidate rotation (all triples degenerate)");
 
@@ -659,12 +690,13 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   int refined_count = 0;
   std::vector<RefinedRotation> contenders;  // every refined candidate, the winner included
   for (const Verified& v : verified) {
-    if (refined_count == kMaxRefinedCandidates) break;
+    if (refined_count == (partEnabled(VotePart::kRefineContenders) ? kMaxRefinedCandidates : 1)) break;
     // The prior and the identity are refined whatever their verified count: they are candidates
     // because under strong translation the voted rotations are all biased alike, and then their
     // own verification (a translation sampled from a start far off) undercounts them too.
     const std::string_view source(v.source);
-    const bool structural = source == "prior" || source == "identity";
+    const bool structural =
+        partEnabled(VotePart::kRefineContenders) && (source == "prior" || source == "identity");
     if (v.rotation.inliers < kRefineFraction * best_verified && !structural) continue;
     const RefinedRotation r = refineRotation(matches, v.rotation, threshold, settings_.refine_iterations);
     ++refined_count;
@@ -693,7 +725,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // frame, so the previous one, with the prior rotation, usually starts in the right basin. Not
   // needed when the winner already moves along (or against) that direction: it would converge to
   // the winner again (under forward driving, every frame).
-  if (prior_usable && prior.translation.allFinite() && prior.translation.norm() > 0.5) {
+  if (partEnabled(VotePart::kPreviousMotion) && prior_usable && prior.translation.allFinite() &&
+      prior.translation.norm() > 0.5) {
     const Eigen::Vector3d previous_direction = prior.translation.normalized();
     const bool same_direction = !refined.pure_rotation && !refined.translation.isZero() &&
                                 std::abs(refined.translation.normalized().dot(previous_direction)) >
@@ -707,7 +740,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // search on it finds a better epipole and more inliers; repeat while the inlier set grows. Before
   // the valley search: a winner refined as a pure rotation (a translation that explained few more
   // matches than none) may turn out to have one here, and then its valley must be searched.
-  for (int round = 1; round <= 1; ++round) {
+  for (int round = 1; round <= (partEnabled(VotePart::kReverify) ? 1 : 0); ++round) {
     const VerifiedRotation again = verifyRotation(matches, refined.rotation, threshold, seed + round);
     // A couple more inliers cannot move the solution measurably; only a clearly larger set is
     // worth another refinement.
@@ -728,7 +761,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // basin whose translation says nothing of the true valley, so then both axes across the view
   // are searched. Wrong matches alone do not trigger that: verification does not count them either.
   // Under forward motion with the matches explained there is no such valley and nothing runs.
-  if (!refined.pure_rotation && !refined.translation.isZero()) {
+  if (partEnabled(VotePart::kValley) && !refined.pure_rotation && !refined.translation.isZero()) {
     Eigen::Vector3d view = Eigen::Vector3d::Zero();
     for (const Eigen::Vector3d& b : previous) view += b;
     view.normalize();
@@ -811,7 +844,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   const auto explainsTooFew = [&] {
     return refined.inliers < kRestartInlierFraction * static_cast<double>(n);
   };
-  if (explainsTooFew()) {
+  if (partEnabled(VotePart::kRestarts) && explainsTooFew()) {
     // Besides the winner's rotation, the rotations of the refined contenders with the most inliers
     // that lie elsewhere: with many wrong matches near structure the winner can be a wrong basin
     // a degree or two from the right rotation, too far for any translation to bring the right
@@ -845,7 +878,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   // between refinements), with the right translation already. Small steps on the truncated cost
   // cross them; a refinement from where they end gives a stationary point, and its covariance,
   // and competes like the others.
-  if (explainsTooFew() && !refined.pure_rotation && !refined.translation.isZero()) {
+  if (partEnabled(VotePart::kDescent) && explainsTooFew() && !refined.pure_rotation &&
+      !refined.translation.isZero()) {
     Eigen::Matrix3d rotation = refined.rotation;
     Eigen::Vector3d translation = refined.translation;
     if (descendTruncatedCost(matches, threshold, &rotation, &translation))
@@ -860,7 +894,9 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   fillAngles(refined.rotation, &result);
   result.translation = refined.pure_rotation ? Eigen::Vector3d::Zero() : refined.translation;
   result.covariance = honestCovariance(matches, &workspace_->refit_matches, refined, contenders, threshold,
-                                       settings_.refine_iterations, refined_positions_, &diagnostics);
+                                       settings_.refine_iterations, refined_positions_,
+                                       partEnabled(VotePart::kRefitJackknife),
+                                       partEnabled(VotePart::kContenderSpread), &diagnostics);
   for (int k = 0; k < 3; ++k)
     result.covariance(k, k) = std::max(result.covariance(k, k), settings_.min_covariance_rad2);
   result.inliers = refined.inliers;

@@ -18,10 +18,12 @@ double elapsedMs(std::chrono::steady_clock::time_point start) {
 /// valid rotation vector, rescaled to this interval; none after an invalid estimate).
 class OwnEstimatorRunner : public MethodRunner {
  public:
-  OwnEstimatorRunner(const EstimatorSettings& settings, bool refined_positions, double match_footprint)
+  OwnEstimatorRunner(const EstimatorSettings& settings, bool refined_positions, double match_footprint,
+                     uint32_t disabled_parts)
       : estimator_(createRotationEstimator(settings, [](const std::string& w) {
           std::cerr << "warning: " << w << "\n";
         })) {
+    estimator_->setDisabledParts(disabled_parts);
     estimator_->setRefinedPositions(refined_positions);
     estimator_->setMatchFootprint(match_footprint);
   }
@@ -144,11 +146,27 @@ class PlausibilityRunner : public MethodRunner {
   CalibrationFitMonitor fit_;
 };
 
+constexpr const char* kAblationPrefix = "vote-without-";
+
+// vote-without-<part>: true with the part when `method` names one.
+bool parseAblation(const std::string& method, VotePart* part) {
+  const std::string prefix(kAblationPrefix);
+  return method.compare(0, prefix.size(), prefix) == 0 && parseVotePart(method.substr(prefix.size()), part);
+}
+
 }  // namespace
 
 bool isOwnMethod(const std::string& method) {
   EstimationMethod parsed;
-  return parseMethod(method, &parsed);
+  VotePart part;
+  return parseMethod(method, &parsed) || parseAblation(method, &part);
+}
+
+std::vector<std::string> ablationMethodNames() {
+  std::vector<std::string> names;
+  for (int k = 0; k < static_cast<int>(VotePart::kCount); ++k)
+    names.push_back(kAblationPrefix + std::string(votePartName(static_cast<VotePart>(k))));
+  return names;
 }
 
 std::vector<std::string> methodNames() {
@@ -163,7 +181,7 @@ std::string methodProblem(const std::string& method) {
   if (isOpenGvBaseline(method)) {
     return "method '" + method + "' needs OpenGV, which this build does not have (install libopengv-dev and rebuild)";
   }
-  std::string known = "vote, paper";
+  std::string known = "vote, paper, vote-without-<part> (evaluate --list-ablations)";
   for (const auto& n : baselineNames()) known += ", " + n;
   return "unknown method '" + method + "' (known: " + known + ")";
 }
@@ -173,9 +191,13 @@ std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const Visual
                                          double match_footprint, double pixel_angle_rad) {
   std::unique_ptr<MethodRunner> runner;
   EstimatorSettings estimator = settings.estimator;
-  const bool own = parseMethod(method, &estimator.method);
+  VotePart ablated = VotePart::kCount;
+  const bool ablation = parseAblation(method, &ablated);
+  if (ablation) estimator.method = EstimationMethod::kVote;
+  const bool own = ablation || parseMethod(method, &estimator.method);
   if (own) {
-    runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions, match_footprint);
+    const uint32_t disabled = ablation ? 1u << static_cast<int>(ablated) : 0u;
+    runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions, match_footprint, disabled);
   } else {
     runner = std::make_unique<BaselineRunner>(method, baseline);
   }

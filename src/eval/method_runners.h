@@ -54,10 +54,13 @@ class MethodRunner {
   virtual std::string backend() const = 0;
 };
 
-/// True for the package's own methods (vote, paper); the others are baselines.
+/// True for the package's own methods (vote, paper, and vote without one part:
+/// `vote-without-<part>`, VotePart); the others are baselines.
 bool isOwnMethod(const std::string& method);
 /// Every method this build has: vote, paper, then the compiled baselines.
 std::vector<std::string> methodNames();
+/// vote-without-<part> for every VotePart: the vote method with that part switched off.
+std::vector<std::string> ablationMethodNames();
 /// "" when this build has `method`, else why not (unknown, or needs OpenGV).
 std::string methodProblem(const std::string& method);
 

@@ -66,6 +66,8 @@ const char* const kUsage =
     "                         not removed; by default both are estimated from the first method)\n"
     "  --quiet                summary and JSON only (no progress)\n"
     "  --list-methods         print the methods this build has, comma-separated, and exit\n"
+    "  --list-ablations       print the vote method's ablations (vote-without-<part>: the vote\n"
+    "                         method with one part off), comma-separated, and exit\n"
     "  --list-backends        print the backends that work here (cpu[,cuda]; why not cuda on stderr)\n"
     "  --settings-table       print every setting as Markdown, one table per tier (user, expert, paper-only)\n";
 
@@ -153,6 +155,11 @@ Options parseOptions(int argc, char** argv) {
     } else if (args.is("--list-methods")) {
       std::string list;
       for (const auto& m : eval::methodNames()) list += (list.empty() ? "" : ",") + m;
+      std::cout << list << "\n";
+      std::exit(0);
+    } else if (args.is("--list-ablations")) {
+      std::string list;
+      for (const auto& m : eval::ablationMethodNames()) list += (list.empty() ? "" : ",") + m;
       std::cout << list << "\n";
       std::exit(0);
     } else if (args.is("--settings-table")) {
