@@ -1,5 +1,6 @@
 #include "method_runners.h"
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 
@@ -148,18 +149,29 @@ class PlausibilityRunner : public MethodRunner {
 
 constexpr const char* kAblationPrefix = "vote-without-";
 
-// vote-without-<part>: true with the part when `method` names one.
-bool parseAblation(const std::string& method, VotePart* part) {
+// vote-without-<part>[+<part>...]: true with the parts' mask (bit k: VotePart k off) when
+// `method` names one or more parts.
+bool parseAblation(const std::string& method, uint32_t* disabled) {
   const std::string prefix(kAblationPrefix);
-  return method.compare(0, prefix.size(), prefix) == 0 && parseVotePart(method.substr(prefix.size()), part);
+  if (method.compare(0, prefix.size(), prefix) != 0) return false;
+  *disabled = 0;
+  size_t begin = prefix.size();
+  while (begin <= method.size()) {
+    const size_t end = std::min(method.find('+', begin), method.size());
+    VotePart part;
+    if (!parseVotePart(method.substr(begin, end - begin), &part)) return false;
+    *disabled |= 1u << static_cast<int>(part);
+    begin = end + 1;
+  }
+  return true;
 }
 
 }  // namespace
 
 bool isOwnMethod(const std::string& method) {
   EstimationMethod parsed;
-  VotePart part;
-  return parseMethod(method, &parsed) || parseAblation(method, &part);
+  uint32_t disabled;
+  return parseMethod(method, &parsed) || parseAblation(method, &disabled);
 }
 
 std::vector<std::string> ablationMethodNames() {
@@ -181,7 +193,7 @@ std::string methodProblem(const std::string& method) {
   if (isOpenGvBaseline(method)) {
     return "method '" + method + "' needs OpenGV, which this build does not have (install libopengv-dev and rebuild)";
   }
-  std::string known = "vote, paper, vote-without-<part> (evaluate --list-ablations)";
+  std::string known = "vote, paper, vote-without-<part>[+<part>...] (evaluate --list-ablations)";
   for (const auto& n : baselineNames()) known += ", " + n;
   return "unknown method '" + method + "' (known: " + known + ")";
 }
@@ -191,12 +203,11 @@ std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const Visual
                                          double match_footprint, double pixel_angle_rad) {
   std::unique_ptr<MethodRunner> runner;
   EstimatorSettings estimator = settings.estimator;
-  VotePart ablated = VotePart::kCount;
-  const bool ablation = parseAblation(method, &ablated);
+  uint32_t disabled = 0;
+  const bool ablation = parseAblation(method, &disabled);
   if (ablation) estimator.method = EstimationMethod::kVote;
   const bool own = ablation || parseMethod(method, &estimator.method);
   if (own) {
-    const uint32_t disabled = ablation ? 1u << static_cast<int>(ablated) : 0u;
     runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions, match_footprint, disabled);
   } else {
     runner = std::make_unique<BaselineRunner>(method, baseline);

@@ -55,7 +55,7 @@ class MethodRunner {
 };
 
 /// True for the package's own methods (vote, paper, and vote without one part:
-/// `vote-without-<part>`, VotePart); the others are baselines.
+/// `vote-without-<part>[+<part>...]`, VotePart); the others are baselines.
 bool isOwnMethod(const std::string& method);
 /// Every method this build has: vote, paper, then the compiled baselines.
 std::vector<std::string> methodNames();
