@@ -46,13 +46,26 @@ def is_ablation(method):
     return method.startswith(ABLATION_PREFIX)
 
 
-def chi_square_bound(header=METRICS_HEADER):
-    """kChiSquare3Dof99 as metrics.h defines it (one source of truth)."""
+def metrics_constant(name, header=METRICS_HEADER):
+    """A constant as metrics.h defines it (one source of truth)."""
     with open(header) as f:
-        match = re.search(r"kChiSquare3Dof99\s*=\s*([0-9.eE+-]+)\s*;", f.read())
+        match = re.search(name + r"\s*=\s*([0-9.eE+-]+)\s*;", f.read())
     if not match:
-        sys.exit(f"[score] kChiSquare3Dof99 not found in {header}")
+        sys.exit(f"[score] {name} not found in {header}")
     return float(match.group(1))
+
+
+def chi_square_bound(header=METRICS_HEADER):
+    """kChiSquare3Dof99 of metrics.h."""
+    return metrics_constant("kChiSquare3Dof99", header)
+
+
+def overconfident_cases(per_case, method):
+    """Cases where `method`'s covariance is over-confident: NEES mean above metrics.h's
+    kHonestNeesMeanMax or a share beyond the 99 % bound above kHonestBeyond99Max."""
+    nees_max, beyond_max = metrics_constant("kHonestNeesMeanMax"), metrics_constant("kHonestBeyond99Max")
+    return sorted(c for c, f in per_case.items() if method in f and
+                  (f[method]["nees_mean"] > nees_max or f[method]["nees_beyond99"] > beyond_max))
 
 
 def number(text):
@@ -170,8 +183,10 @@ def seed_spread(per_case, seeds, method=REFERENCE_METHOD):
 
 def ablation_rows(methods, per_case, per_method, spread):
     """Per ablation: its score beside vote's, its RMSE over vote's per case (geometric mean, worst),
-    its pooled NEES, and a verdict: the part pays when removing it worsens the geometric mean vs the
-    best peer by more than the seed-to-seed spread ((max - min) / pooled, times vote's geomean)."""
+    its NEES mean over cases, its over-confident cases, and a verdict: the part pays when removing
+    it worsens the geometric mean vs the best peer by more than the seed-to-seed spread ((max - min)
+    / pooled, times vote's geomean), or, for a part that leaves the rotations as they are (a part
+    of the covariance), when removing it makes more cases over-confident."""
     vote = per_method.get(REFERENCE_METHOD, {}).get("geomean", math.nan)
     margin = spread["relative"] * vote if math.isfinite(spread["relative"]) else 0.0
     rows = []
@@ -183,10 +198,14 @@ def ablation_rows(methods, per_case, per_method, spread):
         nees = [f[m]["nees_mean"] for f in per_case.values() if m in f and math.isfinite(f[m]["nees_mean"])]
         beyond = [f[m]["nees_beyond99"] for f in per_case.values() if m in f and math.isfinite(f[m]["nees_beyond99"])]
         g = per_method[m]["geomean"]
+        overconfident = overconfident_cases(per_case, m)
         verdict = ("pays" if g - vote > margin else "costs" if vote - g > margin else "within the spread")
+        if verdict == "within the spread" and len(overconfident) > len(overconfident_cases(per_case, REFERENCE_METHOD)):
+            verdict = "pays (covariance)"
         rows.append({"part": m[len(ABLATION_PREFIX):], "geomean": g, "worst": per_method[m]["worst"],
                      "vs_vote": over_cases(vs_vote), "nees_mean": float(np.mean(nees)) if nees else math.nan,
-                     "nees_beyond99": float(np.mean(beyond)) if beyond else math.nan, "verdict": verdict})
+                     "nees_beyond99": float(np.mean(beyond)) if beyond else math.nan,
+                     "overconfident": overconfident, "verdict": verdict})
     return rows
 
 
@@ -204,13 +223,14 @@ def ablation_markdown(rows, per_case, per_method):
     vote = per_method.get(REFERENCE_METHOD, {})
     lines = ["## Ablation: vote without one part", "",
              "| without | geometric mean vs best peer | worst | RMSE / vote's: geometric mean | worst (case) "
-             "| NEES mean over cases | verdict |", "|---|---|---|---|---|---|---|",
+             "| NEES mean over cases | over-confident cases | verdict |", "|---|---|---|---|---|---|---|---|",
              f"| (nothing: vote) | {fmt(vote.get('geomean', math.nan))} | {fmt(vote.get('worst', math.nan))} | 1 | 1 "
-             f"| {fmt(float(np.mean(nees)) if nees else math.nan, 2)} | |"]
+             f"| {fmt(float(np.mean(nees)) if nees else math.nan, 2)} "
+             f"| {len(overconfident_cases(per_case, REFERENCE_METHOD))} | |"]
     for r in rows:
         lines.append(f"| {r['part']} | {fmt(r['geomean'])} | {fmt(r['worst'])} | {fmt(r['vs_vote']['geomean'])} "
                      f"| {fmt(r['vs_vote']['worst'], 2)} ({r['vs_vote']['worst_case']}) | {fmt(r['nees_mean'], 2)} "
-                     f"| {r['verdict']} |")
+                     f"| {len(r['overconfident'])} | {r['verdict']} |")
     return lines + [""]
 
 
@@ -345,7 +365,8 @@ def main():
     if ablation:
         summary["ablation"] = {r["part"]: {"geomean": clean(r["geomean"]), "worst": clean(r["worst"]),
                                            "vs_vote_geomean": clean(r["vs_vote"]["geomean"]),
-                                           "nees_mean": clean(r["nees_mean"]), "verdict": r["verdict"]}
+                                           "nees_mean": clean(r["nees_mean"]),
+                                           "overconfident_cases": len(r["overconfident"]), "verdict": r["verdict"]}
                                for r in ablation}
     line = json.dumps(summary)
     with open(os.path.join(args.out, "score.json"), "w") as f:

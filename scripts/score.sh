@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # `make score`: one score over all the real footage and its hard variants. Every method of
 # `evaluate --list-methods`, on the same matches per run, on: the shared real sequences present;
-# their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches, frames
-# downscaled to a quarter); and
-# rendered scenes (near structure, a dim blurred room, a blurred 1280 x 720 room, a hand-held room,
-# the same through a phone-like rolling shutter). Each case runs with estimator seeds 1-3; the
+# their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches, both at
+# once, frames downscaled to a quarter); and rendered scenes (near structure, over four textures; a
+# dim blurred room, a blurred 1280 x 720 room, a hand-held room, the same through a phone-like
+# rolling shutter). Each case runs with estimator seeds 1-3; the
 # per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
 # last line of JSON (also out/score/score.json).
 #
@@ -106,6 +106,9 @@ run_case() {
 
 # 1. Renders (reused between runs).
 render drone_near --preset drone_near
+for texture in 4 12 16; do
+  render "drone_near_texture${texture}" --preset drone_near --seed "${texture}"
+done
 render dim_blur3_jpeg75 --preset dim --blur 3 --jpeg 75
 render dim_blur15_720p --preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900
 render handheld --preset handheld
@@ -136,6 +139,8 @@ for fraction in 0.5 0.7; do
   run_case "mh01_outliers${fraction}" "${shake}" "euroc_mh01_shake, ${fraction/0./}0 % of the matches wrong" \
     --outliers "${fraction}"
 done
+run_case mh01_stride2_outliers0.5 "${shake}" "euroc_mh01_shake, image k paired with image k-2, 50 % of the matches wrong" \
+  --stride 2 --outliers 0.5
 
 # 5b. Small images: frames downscaled with their intrinsics. At a quarter of their size the
 # shared sequences are still estimated; below it vote declares its estimates invalid (inliers too
@@ -147,6 +152,10 @@ done
 
 # 6. Rendered scenes (exact truth).
 run_case drone_near "${OUT}/rendered/drone_near" "rendered drone_near: shaken 1-2 m from boxes, 20 Hz"
+for texture in 4 12 16; do
+  run_case "drone_near_texture${texture}" "${OUT}/rendered/drone_near_texture${texture}" \
+    "rendered drone_near's motion over the boxes of renderer seed ${texture} (other textures, other basins)"
+done
 run_case dim_blur3_jpeg75 "${OUT}/rendered/dim_blur3_jpeg75" "rendered dim room, 3 px motion blur, JPEG 75, 30 Hz"
 run_case dim_blur15_720p "${OUT}/rendered/dim_blur15_720p" \
   "rendered dim room at 1280 x 720 (f = 900 px), 15 px motion blur, JPEG 60, 30 Hz"

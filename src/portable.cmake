@@ -7,7 +7,8 @@
 #                                  (with its batched triple solver)
 #   visual_gyro_cli_objects        src/tools/command_line: the commands' command-line conventions
 #   visual_gyro_bearing_objects    src/io/bearing_file: the bearing-file format (plain C++)
-#   visual_gyro_estimator_objects  rotation estimator, refinement (and its per-match passes), frame status,
+#   visual_gyro_estimator_objects  rotation estimator and its stages (candidates, refinement and its
+#                                  per-match passes, covariance), frame status,
 #                                  setting fields (Eigen)
 #   visual_gyro_metrics_objects    src/eval/metrics: per-frame errors and their summaries (Eigen)
 #
@@ -38,7 +39,10 @@ if(VISUAL_GYRO_EIGEN_TARGET)
     "${VISUAL_GYRO_SRC_DIR}/core/frame_status.cpp"
     "${VISUAL_GYRO_SRC_DIR}/core/match_passes.cpp"
     "${VISUAL_GYRO_SRC_DIR}/core/rotation_estimator.cpp"
-    "${VISUAL_GYRO_SRC_DIR}/core/rotation_refinement.cpp")
+    "${VISUAL_GYRO_SRC_DIR}/core/rotation_refinement.cpp"
+    "${VISUAL_GYRO_SRC_DIR}/core/candidate_refinement.cpp"
+    "${VISUAL_GYRO_SRC_DIR}/core/vote_candidates.cpp"
+    "${VISUAL_GYRO_SRC_DIR}/core/vote_covariance.cpp")
   target_include_directories(visual_gyro_estimator_objects PUBLIC
     "${VISUAL_GYRO_PUBLIC_INCLUDE}" "${VISUAL_GYRO_SRC_DIR}/voter")
   target_link_libraries(visual_gyro_estimator_objects PUBLIC ${VISUAL_GYRO_EIGEN_TARGET})

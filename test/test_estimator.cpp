@@ -13,7 +13,10 @@
 #include "hypothesis_math.h"
 #include "hypothesis_voter.h"
 #include "match_passes.h"
+#include "candidate_refinement.h"
 #include "rotation_refinement.h"
+#include "vote_candidates.h"
+#include "vote_covariance.h"
 #include "triple_batch.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
@@ -499,6 +502,201 @@ TEST(VoteMethod, ForwardTranslationWithNearStructure) {
     EXPECT_NEAR(r.translation.norm(), 1.0, 1e-9);
     EXPECT_GT(std::abs(r.translation.dot(t.normalized())), std::cos(5.0 * kDeg)) << r.translation.transpose();
   }
+}
+
+// ---- The vote method's stages, each alone --------------------------------------------------------
+
+namespace {
+
+// The voting stage's input for `scene` with the default settings; `prior` may be null.
+struct StageFixture {
+  vg::EstimatorSettings settings = cpuSettings("vote");
+  std::vector<vg::hyp::Vec3f> prev, cur;
+  vg::FrameMatches matches;
+  std::unique_ptr<vg::HypothesisVoter> voter = vg::createCpuVoter();
+  vg::VoteResult votes;
+
+  explicit StageFixture(const Scene& s) {
+    for (const auto& b : s.previous) prev.push_back(toF(b));
+    for (const auto& b : s.current) cur.push_back(toF(b));
+    matches.assign(s.previous, s.current);
+  }
+  vg::CandidateVote vote(const Vector3d* prior, double needed) {
+    vg::CandidateVoteInput in;
+    in.settings = &settings;
+    in.prev = &prev;
+    in.cur = &cur;
+    in.matches = &matches;
+    in.seed = 5;
+    in.prior = prior;
+    in.needed = needed;
+    return vg::voteCandidates(in, [this](const vg::VoteRequest& r, vg::VoteResult* v) { voter->vote(r, v); }, &votes);
+  }
+};
+
+// A refinement result with the given rotation, translation, inliers and cost (model: general
+// motion unless `translation` is zero).
+vg::RefinedRotation refinedAt(const Matrix3d& R, const Vector3d& t, int inliers, double cost) {
+  vg::RefinedRotation r;
+  r.rotation = R;
+  r.translation = t;
+  r.pure_rotation = t.isZero();
+  r.inliers = inliers;
+  r.truncated_cost = cost;
+  r.covariance = Matrix3d::Identity() * 1e-8;
+  return r;
+}
+
+}  // namespace
+
+TEST(VoteCandidates, DistinctCellsThenPriorAndIdentityBestFirst) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2.0 * kDeg, -0.5 * kDeg, 0.3 * kDeg);
+  StageFixture f(makeScene(R, Vector3d(0.01, 0, 0.02), 600, 0.5e-3, 0.3, 20, 60, 3));
+  const Vector3d prior = vg::so3Log(R) + Vector3d(0.6, -0.4, 0.3) * kDeg;  // more than half a cell off
+  const vg::CandidateVote vote = f.vote(&prior, 100);
+  ASSERT_GE(vote.candidates.size(), 3u);
+  EXPECT_FALSE(vote.wide_vote) << "the narrow vote explained the frame";
+  std::set<vg::CandidateSource> sources;
+  for (size_t i = 0; i < vote.candidates.size(); ++i) {
+    const vg::Candidate& c = vote.candidates[i];
+    sources.insert(c.source);
+    if (i > 0) EXPECT_LE(c.verified.inliers, vote.candidates[i - 1].verified.inliers) << "not best first";
+    for (size_t j = 0; j < i; ++j)
+      EXPECT_GE((c.rotation_vector - vote.candidates[j].rotation_vector).norm(), 0.5 * f.settings.rotation_bin_deg * kDeg);
+  }
+  EXPECT_TRUE(sources.count(vg::CandidateSource::kNarrow) && sources.count(vg::CandidateSource::kPrior) &&
+              sources.count(vg::CandidateSource::kIdentity));
+  EXPECT_EQ(vote.best_verified, vote.candidates.front().verified.inliers);
+  EXPECT_LT(vg::rotationAngleBetween(vg::so3Exp(vote.candidates.front().rotation_vector), R), 0.3 * kDeg);
+  EXPECT_EQ(vote.hypotheses_drawn, f.settings.hypotheses);
+}
+
+TEST(VoteCandidates, WrongPriorTakesTheWideVote) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(-6.0 * kDeg, 1.0 * kDeg, 0.0);
+  StageFixture f(makeScene(R, Vector3d::Zero(), 500, 0.5e-3, 0.2, 20, 60, 4));
+  const Vector3d prior = Vector3d(0.0, 15.0, 0.0) * kDeg;  // far outside the narrow window of the truth
+  const vg::CandidateVote vote = f.vote(&prior, 200);
+  EXPECT_TRUE(vote.wide_vote);
+  EXPECT_EQ(vote.hypotheses_drawn, 2 * f.settings.hypotheses);
+  bool wide_found_it = false;
+  for (const vg::Candidate& c : vote.candidates)
+    wide_found_it = wide_found_it || (c.source == vg::CandidateSource::kWide &&
+                                      vg::rotationAngleBetween(vg::so3Exp(c.rotation_vector), R) < 0.5 * kDeg);
+  EXPECT_TRUE(wide_found_it);
+  EXPECT_STREQ(vg::candidateSourceName(vg::CandidateSource::kWide), "wide");
+}
+
+TEST(CandidateRefinement, ChallengeReplacesTheWinnerOnlyWhenItExplainsBetter) {
+  vg::RefinementChoice choice;
+  const Vector3d t(1, 0, 0);
+  choice.winner = refinedAt(Matrix3d::Identity(), t, 100, 1.0);
+  EXPECT_FALSE(choice.challenge(refinedAt(Matrix3d::Identity(), t, 120, 2.0)));  // more inliers, looser fit
+  EXPECT_EQ(choice.runner_up_inliers, 120);
+  EXPECT_TRUE(choice.challenge(refinedAt(Matrix3d::Identity(), t, 90, 0.5)));
+  EXPECT_EQ(choice.winner.inliers, 90);
+  EXPECT_EQ(choice.runner_up_inliers, 120);
+  EXPECT_EQ(choice.contenders.size(), 2u);
+}
+
+TEST(CandidateRefinement, ValleySearchLeavesAWrongBasinAlongTheValley) {
+  // A close scene with a sideways translation: a rotation about view x t with the same translation
+  // moves the image almost alike, the valley the search walks along.
+  const Matrix3d R = vg::rotationFromYawPitchRoll(1.0 * kDeg, 0.2 * kDeg, 0.0);
+  const Vector3d t(0.3, 0.0, 0.05);
+  const Scene s = makeScene(R, t, 600, 0.5e-3, 0.1, 1.5, 6, 8);
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  const Vector3d view(0, 0, 1);
+  const Vector3d axis = view.cross(t).normalized();
+  vg::RefinementChoice choice;
+  choice.winner = refinedAt(vg::so3Exp(1.5 * kDeg * axis) * R, t.normalized(), 300, 1e9);
+  bool moved = false;
+  const double threshold = 0.1 * kDeg;
+  ASSERT_TRUE(vg::searchValley(matches, view, 300, threshold, 10, 5, &choice, &moved));
+  EXPECT_TRUE(moved);
+  EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.1 * kDeg);
+  // A pure rotation has no valley.
+  choice.winner = refinedAt(R, Vector3d::Zero(), 300, 1.0);
+  EXPECT_FALSE(vg::searchValley(matches, view, 300, threshold, 10, 5, &choice, &moved));
+  EXPECT_FALSE(moved);
+}
+
+TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenTooFewAreExplained) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.0, 0.1 * kDeg);
+  const Vector3d t(0.0, 0.2, 1.0);
+  const Scene s = makeScene(R, t, 500, 0.5e-3, 0.1, 2, 10, 9);
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  const double threshold = 0.1 * kDeg;
+  vg::RefinementChoice choice;
+  choice.winner = refinedAt(R, Vector3d(1, 0, 0), 450, 1e9);  // explains 90 %: no restart
+  EXPECT_FALSE(vg::restartFromTranslations(matches, threshold, 10, &choice));
+  EXPECT_TRUE(choice.contenders.empty());
+  choice.winner = refinedAt(R, Vector3d(1, 0, 0), 50, 1e9);  // a wrong translation explaining 10 %
+  EXPECT_TRUE(vg::restartFromTranslations(matches, threshold, 10, &choice));
+  EXPECT_EQ(choice.contenders.size(), 9u);  // one start, nine directions
+  EXPECT_GT(std::abs(choice.winner.translation.dot(t.normalized())), std::cos(2.0 * kDeg));
+  EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.05 * kDeg);
+}
+
+TEST(CandidateRefinement, PreviousMotionStartsOnlyWhereTheWinnerMovesElsewhere) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(1.2 * kDeg, 0.3 * kDeg, 0.0);
+  const Vector3d t(0.3, 0.05, 0.1);
+  const Scene s = makeScene(R, t, 500, 0.5e-3, 0.1, 1.5, 6, 12);
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  const double threshold = 0.1 * kDeg;
+  vg::RefinementChoice choice;
+  // A winner moving forward where the truth moves sideways, a degree off: the previous motion wins.
+  choice.winner = refinedAt(vg::so3Exp(Vector3d(0, 1, 0) * kDeg) * R, Vector3d(0, 0, 1), 100, 1e9);
+  EXPECT_TRUE(vg::refineFromPreviousMotion(matches, R, t.normalized(), threshold, 10, &choice));
+  EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.05 * kDeg);
+  // A winner already along that line (either sign) is left alone.
+  const size_t contenders = choice.contenders.size();
+  choice.winner = refinedAt(R, -t.normalized(), 100, 1e9);
+  EXPECT_FALSE(vg::refineFromPreviousMotion(matches, R, t.normalized(), threshold, 10, &choice));
+  EXPECT_EQ(choice.contenders.size(), contenders);
+}
+
+TEST(CandidateRefinement, DescentRunsOnlyWhenTooFewAreExplainedAndEndsLower) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.0, 0.2 * kDeg);
+  const Vector3d t(0.2, 0.0, 1.0);
+  const Scene s = makeScene(R, t, 500, 0.5e-3, 0.5, 2, 10, 13);
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  const double threshold = 0.1 * kDeg;
+  vg::RefinementChoice choice;
+  choice.winner = refinedAt(vg::so3Exp(Vector3d(0.3, -0.2, 0.1) * kDeg) * R, t.normalized(), 450, 1e9);
+  EXPECT_FALSE(vg::descendTruncatedCost(matches, threshold, 10, &choice)) << "90 % explained: no descent";
+  choice.winner.inliers = 200;  // half the matches wrong: 40 % explained
+  EXPECT_TRUE(vg::descendTruncatedCost(matches, threshold, 10, &choice));
+  EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.05 * kDeg);
+}
+
+TEST(VoteCovariance, ContendersWidenItAndTheFloorsHold) {
+  const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 300, 0.5e-3, 0.0, 20, 60, 10);
+  vg::FrameMatches matches, refit;
+  matches.assign(s.previous, s.current);
+  const vg::RefinedRotation winner = refinedAt(Matrix3d::Identity(), Vector3d::Zero(), 300, 1.0);
+  vg::CovarianceInput in;
+  in.threshold = 0.1 * kDeg;
+  in.iterations = 10;
+  vg::VoteDiagnostics d;
+  const Matrix3d alone = vg::voteCovariance(matches, &refit, winner, {}, in, &d);
+  const double floor = vg::rotationCovarianceFloor(false);
+  // Integer positions: sigma^2 (J^T W J)^-1 times inliers / kIntegerPositionsEffectiveMatches, plus the floor.
+  EXPECT_TRUE(alone.isApprox(winner.covariance * (300.0 / vg::kIntegerPositionsEffectiveMatches) +
+                             Matrix3d::Identity() * floor * floor, 1e-12));
+  EXPECT_NEAR(d.effective_matches, vg::kIntegerPositionsEffectiveMatches, 1e-9);
+  // A contender 1 deg away about x with as many inliers weighs 1: half its second moment is added.
+  const Vector3d away = Vector3d::UnitX() * kDeg;
+  const std::vector<vg::RefinedRotation> contenders{refinedAt(vg::so3Exp(away), Vector3d::Zero(), 300, 1.0)};
+  const Matrix3d mixed = vg::voteCovariance(matches, &refit, winner, contenders, in, &d);
+  EXPECT_TRUE((mixed - alone).isApprox(0.5 * away * away.transpose(), 1e-9));
+  in.contender_spread = false;
+  EXPECT_TRUE(vg::voteCovariance(matches, &refit, winner, contenders, in, &d).isApprox(alone, 1e-12));
+  in.min_variance = 1e-3;
+  EXPECT_DOUBLE_EQ(vg::voteCovariance(matches, &refit, winner, {}, in, &d)(1, 1), 1e-3);
 }
 
 TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {

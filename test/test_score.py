@@ -106,7 +106,7 @@ class ScoreArithmetic(unittest.TestCase):
         def case(vote, without_x, without_y, peer):
             f = lambda r: {"rmse": r, "nees_mean": 2.0, "nees_beyond99": 0.01}
             return {"vote": f(vote), "vote-without-x": f(without_x), "vote-without-y": f(without_y), "a": f(peer)}
-        per_case = {"c1": case(1.0, 2.0, 1.01, 2.0), "c2": case(1.0, 1.5, 0.99, 2.0)}
+        per_case = {"c1": case(1.0, 2.0, 1.01, 2.0), "c2": case(1.0, 1.5, 0.99, 2.0)}  # all honest
         methods = ["vote", "a", "vote-without-x", "vote-without-y"]
         ratios = {c: score.ratios_to_best_peer({m: f["rmse"] for m, f in v.items()}) for c, v in per_case.items()}
         per_method = {m: score.over_cases({c: ratios[c][m] for c in per_case}) for m in methods}
@@ -117,6 +117,19 @@ class ScoreArithmetic(unittest.TestCase):
         self.assertAlmostEqual(by_part["x"]["vs_vote"]["geomean"], math.sqrt(2.0 * 1.5))
         self.assertEqual(by_part["x"]["vs_vote"]["worst_case"], "c1")
         self.assertEqual(by_part["y"]["verdict"], "within the spread")
+
+    def test_a_covariance_part_pays_when_its_removal_makes_cases_overconfident(self):
+        bound = score.metrics_constant("kHonestNeesMeanMax")
+        def f(rmse, nees):
+            return {"rmse": rmse, "nees_mean": nees, "nees_beyond99": 0.0}
+        per_case = {"c1": {"vote": f(1.0, 3.0), "vote-without-z": f(1.0, 2 * bound), "a": f(2.0, math.nan)},
+                    "c2": {"vote": f(1.0, 3.0), "vote-without-z": f(1.0, 3.0), "a": f(2.0, math.nan)}}
+        methods = ["vote", "a", "vote-without-z"]
+        ratios = {c: score.ratios_to_best_peer({m: x["rmse"] for m, x in v.items()}) for c, v in per_case.items()}
+        per_method = {m: score.over_cases({c: ratios[c][m] for c in per_case}) for m in methods}
+        self.assertEqual(score.overconfident_cases(per_case, "vote-without-z"), ["c1"])
+        rows = score.ablation_rows(methods, per_case, per_method, {"relative": 0.1})
+        self.assertEqual(rows[0]["verdict"], "pays (covariance)")
 
 
 if __name__ == "__main__":

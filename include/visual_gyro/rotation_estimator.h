@@ -267,7 +267,6 @@ enum class VotePart : uint8_t {
   kIdentityCandidate, ///< no rotation as a candidate
   kRefineContenders,  ///< refining every comparable candidate, not only the best-verified one
   kPreviousMotion,    ///< the refinement from the prior rotation and the previous translation
-  kReverify,          ///< the re-verification of the refined winner with a tighter gate
   kValley,            ///< the search along the rotation/translation valley of a close scene
   kRestarts,          ///< refinements from nine translation directions when too few are explained
   kDescent,           ///< the descent on the truncated cost under the same condition

@@ -895,21 +895,4 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
   return out;
 }
 
-Eigen::Matrix3d coverInEveryDirection(const Eigen::Matrix3d& covariance, const Eigen::Matrix3d& spread) {
-  if (!spread.allFinite()) return covariance;
-  const Eigen::LLT<Eigen::Matrix3d> llt(covariance);
-  if (llt.info() != Eigen::Success) return covariance;
-  const Eigen::Matrix3d l = llt.matrixL();
-  const Eigen::Matrix3d l_inverse = l.inverse();
-  // In the metric of `covariance` it is the identity, so the larger variance along each
-  // eigen-direction of the whitened spread is max(eigenvalue, 1).
-  const Eigen::Matrix3d whitened = l_inverse * (0.5 * (spread + spread.transpose())) * l_inverse.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(whitened);
-  if (eigen.info() != Eigen::Success) return covariance;
-  const Eigen::Vector3d larger = eigen.eigenvalues().cwiseMax(1.0);
-  const Eigen::Matrix3d covered = l * eigen.eigenvectors() * larger.asDiagonal() * eigen.eigenvectors().transpose() *
-                                  l.transpose();
-  return 0.5 * (covered + covered.transpose());
-}
-
 }  // namespace visual_gyro

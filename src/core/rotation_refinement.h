@@ -197,12 +197,4 @@ JackknifeSpread jackknifeSpread(FrameMatches& matches, const RefinedRotation& re
 JackknifeSpread refitJackknifeSpread(FrameMatches& matches, FrameMatches* rest, const RefinedRotation& refined,
                                      double threshold, int iterations);
 
-/// `covariance` (symmetric positive definite, rad^2) widened to cover `spread` (symmetric positive
-/// semi-definite, rad^2) in every direction: with covariance = L L^T
-/// and the eigen-decomposition L^-1 spread L^-T = V diag(l) V^T, the result is
-/// L V diag(max(l, 1)) V^T L^T. Along each eigen-direction it is the larger of the two variances;
-/// the result minus either argument is positive semi-definite. `covariance` is returned unchanged
-/// when it is not positive definite or `spread` is not finite.
-Eigen::Matrix3d coverInEveryDirection(const Eigen::Matrix3d& covariance, const Eigen::Matrix3d& spread);
-
 }  // namespace visual_gyro

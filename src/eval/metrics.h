@@ -20,6 +20,12 @@ namespace metrics {
 constexpr double kChiSquare3Dof99 = 11.345;
 /// 99.9 % quantile of the chi-square distribution with 3 degrees of freedom.
 constexpr double kChiSquare3Dof999 = 16.266;
+/// A covariance is over-confident on a run when its NEES mean exceeds this (an honest one averages
+/// 3, the degrees of freedom; the truth's own errors and a covariance floor move it by a factor of
+/// about two either way)...
+constexpr double kHonestNeesMeanMax = 6.0;
+/// ...or when more than this share of its frames lie beyond kChiSquare3Dof99 (1 % would be exact).
+constexpr double kHonestBeyond99Max = 0.05;
 
 /// One frame's estimate. R maps current-frame bearings into the previous frame (b_prev ~ R b_cur).
 struct FrameEstimate {

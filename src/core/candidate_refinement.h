@@ -1,0 +1,67 @@
+// The vote method's second stage: the candidates refined and the refinement that explains the
+// matches best chosen (explainsBetter, which also chooses between pure rotation and general
+// motion), then the searches for a better basin that the candidates may all have missed: from the
+// previous frame's motion, along the rotation/translation valley of a close scene, and, when the
+// winner leaves many matches unexplained, from other translation directions and down the
+// truncated cost. Private to src/core; conventions as in
+// rotation_estimator.h (b_prev ~ R b_cur, translation unit in the previous camera frame).
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rotation_refinement.h"
+#include "vote_candidates.h"
+
+namespace visual_gyro {
+
+/// The refined winner and every refinement that competed with it.
+struct RefinementChoice {
+  RefinedRotation winner;
+  const Candidate* from = nullptr;  ///< the candidate the winner was refined from (in the CandidateVote)
+  std::vector<RefinedRotation> contenders;  ///< every refinement, the winner's included
+  int runner_up_inliers = -1;               ///< refined inliers of the best loser; -1: none
+  /// Adds `r` to the contenders; it replaces the winner when it explains the matches better
+  /// (explainsBetter). True when it did.
+  bool challenge(const RefinedRotation& r);
+};
+
+/// Refines the candidates with a verified count of at least kRefineFraction of the best (at most
+/// kMaxRefinedCandidates, the best-verified first; the prior and the identity whatever their
+/// count), each with `iterations`, at inlier threshold `threshold` [rad], and chooses. With
+/// `all_contenders` false (VotePart::kRefineContenders off) only the best-verified one is refined.
+/// `vote` must hold at least one candidate.
+RefinementChoice refineCandidates(FrameMatches& matches, const CandidateVote& vote, double threshold, int iterations,
+                                  bool all_contenders);
+
+/// The previous frame's motion as one more start: a general-motion refinement from `prior_rotation`
+/// and the unit `previous_translation` (both previous camera frame) challenges the winner, unless
+/// the winner already moves along that line (within kSameTranslationDeg): it would converge to the
+/// winner again. True when it won.
+bool refineFromPreviousMotion(FrameMatches& matches, const Eigen::Matrix3d& prior_rotation,
+                              const Eigen::Vector3d& previous_translation, double threshold, int iterations,
+                              RefinementChoice* choice);
+
+/// The valley of a close scene: a lateral translation t and a rotation about view x t move the
+/// image alike to first order. A general-motion winner is re-verified at rotations stepped along
+/// that axis (and both axes across `view`, the mean previous bearing, when its refinement kept
+/// fewer than kValleyInlierRatio of `best_verified`); the step with the lowest truncated cost,
+/// when below the winner's, is refined and challenges it. Returns whether the search ran;
+/// *moved: whether its step won.
+bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_verified, double threshold,
+                  int iterations, uint64_t seed, RefinementChoice* choice, bool* moved);
+
+/// When the winner explains fewer than kRestartInlierFraction of the matches, refinements of
+/// general motion from the winner's rotation and from the two best-refined contenders elsewhere,
+/// each with nine translation directions covering the lines through the camera, challenge it.
+/// True when one of them won.
+bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
+
+/// Under the same condition as the restarts, a general-motion winner descends on the truncated
+/// cost itself (steps of kDescentStepsDeg about the camera axes, each step's translation refitted,
+/// the best step taken while it lowers the cost); a refinement from where it ends challenges the
+/// winner. True when it won.
+bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
+
+}  // namespace visual_gyro

@@ -1,0 +1,100 @@
+// The vote method's covariance model (vote_covariance.h).
+#include "vote_covariance.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+namespace visual_gyro {
+
+namespace {
+
+// The scale of sigma^2 (J^T W J)^-1 and the jackknives it is widened to cover (see voteCovariance).
+struct ScaledCovariance {
+  double inflation = 1.0;
+  JackknifeSpread jack, refit;
+};
+
+// Refined positions: the mean ratio of the jackknife's covariance to the statistical one. The
+// jackknife's steps keep the inliers fixed; when many matches lie just outside the gate, which of
+// them it keeps moves the solution as much as the inliers' own errors do, and the refits without
+// each group, choosing their inliers anew, show by how much.
+ScaledCovariance scaleFromJackknives(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
+                                     const CovarianceInput& input, VoteDiagnostics* diagnostics) {
+  ScaledCovariance out;
+  out.jack = jackknifeSpread(matches, winner, input.threshold);
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(winner.covariance);
+  if (out.jack.groups > 0 && lu.isInvertible())
+    out.inflation = std::max(1.0, (lu.inverse() * out.jack.covariance).trace() / 3.0);
+  diagnostics->near_miss_share = out.jack.near_miss_share;
+  if (input.refit_jackknife && out.jack.near_miss_share >= kRefitNearMissShare && lu.isInvertible()) {
+    out.refit = refitJackknifeSpread(matches, refit_matches, winner, input.threshold, input.iterations);
+    diagnostics->refit_jackknife = out.refit.groups > 0;
+    if (out.refit.groups > 0) out.inflation = std::max(out.inflation, (lu.inverse() * out.refit.covariance).trace() / 3.0);
+  }
+  return out;
+}
+
+// Each contender is weighted by how indistinguishable its inlier count is from the winner's: the
+// count's standard deviation is about sqrt(count) (binomial, most matches inliers), so a contender
+// z such deviations behind weighs exp(-z^2 / 2). The weighted second moment about the winner is
+// that of the mixture of the winner and its contenders (a close scene's rotation/translation
+// valley: two rotations a degree apart, each with its translation, that differ by fewer inliers
+// than the count's own noise).
+Eigen::Matrix3d contenderSpread(const RefinedRotation& winner, const std::vector<RefinedRotation>& contenders) {
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  double weights = 1.0;
+  for (const RefinedRotation& c : contenders) {
+    const Eigen::Vector3d d = so3Log(winner.rotation.transpose() * c.rotation);
+    if (d.norm() < 1e-9) continue;  // converged to the winner itself
+    const double z = (winner.inliers - c.inliers) / std::sqrt(std::max(1, winner.inliers));
+    const double w = std::exp(-0.5 * z * z);
+    spread += w * d * d.transpose();
+    weights += w;
+  }
+  return spread / weights;
+}
+
+}  // namespace
+
+Eigen::Matrix3d voteCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
+                               const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
+                               VoteDiagnostics* diagnostics) {
+  ScaledCovariance scaled;
+  scaled.inflation = std::max(1.0, winner.inliers / kIntegerPositionsEffectiveMatches);
+  if (input.refined_positions) scaled = scaleFromJackknives(matches, refit_matches, winner, input, diagnostics);
+  diagnostics->effective_matches = winner.inliers / scaled.inflation;
+  Eigen::Matrix3d covariance = winner.covariance * scaled.inflation;
+  // The scale is a mean over directions: where a jackknife spreads further than the scaled
+  // covariance along one direction (the rotation/translation valley's, near structure), the scale
+  // alone leaves the covariance too thin there, and on pairs several frames apart the errors fell
+  // along such directions. So the covariance also covers each jackknife's spread in every
+  // direction; the scale stays as its floor, the steadier estimate of the two.
+  if (scaled.jack.groups > 0) covariance = coverInEveryDirection(covariance, scaled.jack.covariance);
+  if (scaled.refit.groups > 0) covariance = coverInEveryDirection(covariance, scaled.refit.covariance);
+  if (input.contender_spread) covariance += contenderSpread(winner, contenders);
+  const double floor = rotationCovarianceFloor(input.refined_positions);
+  covariance.diagonal().array() += floor * floor;
+  for (int k = 0; k < 3; ++k) covariance(k, k) = std::max(covariance(k, k), input.min_variance);
+  return covariance;
+}
+
+Eigen::Matrix3d coverInEveryDirection(const Eigen::Matrix3d& covariance, const Eigen::Matrix3d& spread) {
+  if (!spread.allFinite()) return covariance;
+  const Eigen::LLT<Eigen::Matrix3d> llt(covariance);
+  if (llt.info() != Eigen::Success) return covariance;
+  const Eigen::Matrix3d l = llt.matrixL();
+  const Eigen::Matrix3d l_inverse = l.inverse();
+  // In the metric of `covariance` it is the identity, so the larger variance along each
+  // eigen-direction of the whitened spread is max(eigenvalue, 1).
+  const Eigen::Matrix3d whitened = l_inverse * (0.5 * (spread + spread.transpose())) * l_inverse.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(whitened);
+  if (eigen.info() != Eigen::Success) return covariance;
+  const Eigen::Vector3d larger = eigen.eigenvalues().cwiseMax(1.0);
+  const Eigen::Matrix3d covered = l * eigen.eigenvectors() * larger.asDiagonal() * eigen.eigenvectors().transpose() *
+                                  l.transpose();
+  return 0.5 * (covered + covered.transpose());
+}
+
+}  // namespace visual_gyro
