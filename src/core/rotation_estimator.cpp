@@ -194,7 +194,7 @@ const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields() {
       doubleField<S>("rotation_bin_deg", &S::rotation_bin_deg, 0.01, 10.0, "deg",
                      "vote: cell width of the rotation-vector histogram"),
       doubleField<S>("rotation_window_deg", &S::rotation_window_deg, 0.1, 89.0, "deg",
-                     "vote: half window around the prior (at most 64 cells: a finer bin is widened)"),
+                     "vote: half window around the prior (at most 128 cells an axis: a finer bin is widened)"),
       doubleField<S>("wide_window_deg", &S::wide_window_deg, 0.1, 89.0, "deg",
                      "vote: half window of the prior-free vote"),
       doubleField<S>("max_angle_change_deg", &S::max_angle_change_deg, 0.0, 10.0, "deg",
