@@ -169,6 +169,36 @@ class VisualGyro {
   std::string backendName() const { return estimator_->backendName(); }
 
  private:
+  /// processFrame()'s checks, in this order, each leaving the state untouched: true (with the
+  /// status and reason in `result`) when the image is unusable (kImageRejected: empty, not
+  /// CV_8UC1, not the camera's size, smaller than kMinImageSide).
+  bool rejectImage(const cv::Mat& gray, FrameResult* result) const;
+  /// True when `stamp` [s] is not finite or not after the previous one (kStampRejected), or less
+  /// than min_dt after it (kTimeStepTooSmall, dt set).
+  bool rejectStamp(double stamp, FrameResult* result) const;
+  /// True when the image has no texture (kNoTexture) or repeats the previous one (kFrozenImage);
+  /// dt is set when there is a previous frame.
+  bool rejectContent(const cv::Mat& gray, double stamp, FrameResult* result) const;
+  /// Detects and describes `gray` into features_ and bearings_ (their stage times and the feature
+  /// count into `result`); false (kFrontEndFailed, or kNoTexture without a corner) when the frame
+  /// cannot be used.
+  bool describeFrame(const cv::Mat& gray, double stamp, FrameResult* result);
+  /// Matches the previous frame to this one and, when run_estimator, estimates their rotation
+  /// into `result`; false (kFrontEndFailed) when the front end threw before any state changed.
+  bool estimatePair(const cv::Mat& gray, double stamp, FrameResult* result);
+  /// Sub-pixel refinement of matches_ and tracking of the unmatched corners into tracks_; adds
+  /// its time to times->align.
+  void alignMatches(const cv::Mat& gray, FrameTimes* times);
+  /// Estimates the rotation over `dt` [s] from the matches in `result` (global matching again
+  /// when guided matches gave no estimate), checks it (rate, calibration fit), updates the prior
+  /// and the guided search, and sets the status, angular velocity and estimate time.
+  void estimateRotation(const cv::Mat& gray, const RotationPrior& prior, double dt, FrameResult* result);
+  /// Replaces guided matches that gave no estimate by global ones and estimates again; both
+  /// estimates' times count.
+  void fallBackToGlobal(const cv::Mat& gray, const RotationPrior& prior, FrameResult* result);
+  /// Makes this frame (`gray` at `stamp` [s], its features and half-resolution data) the previous
+  /// one.
+  void keepAsPrevious(const cv::Mat& gray, double stamp);
   /// Matches previous_features_ to features_ into matches_: guided by `prior` when usable, else
   /// (or when guided finds too few) global. Sets matching_.
   void matchFrames(const RotationPrior& prior);
