@@ -23,6 +23,8 @@ enum class MatchingMode {
   kGuided,  ///< around where the rotation prior predicts each corner (global without a prior)
   kGlobal,  ///< every descriptor against every other
 };
+/// The setting's text of a mode: "guided" or "global".
+const char* matchingModeName(MatchingMode mode);
 
 /// Settings of the front end. Ranges, units and docs: frontEndSettingFields().
 struct FrontEndSettings {

@@ -4,6 +4,7 @@
 
 #include <limits>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,21 @@ struct FrameTimes {
   double total = 0.0;  ///< the whole frame, checks included
 };
 
+/// How a frame was paired with the previous one (FrameResult::matching).
+enum class PairMatching {
+  kNone,            ///< not matched (first frame, rejected image)
+  kGuided,          ///< around where the rotation prior predicts each corner
+  kGlobal,          ///< every descriptor against every other (no prior, matching = global)
+  /// Global after guided matching found too few matches or its matches gave no valid estimate.
+  kGlobalFallback,
+};
+
+/// The text of a PairMatching as logs and docs name it: "" (kNone), "guided", "global",
+/// "global_fallback".
+const char* pairMatchingName(PairMatching matching);
+/// Writes pairMatchingName(matching).
+std::ostream& operator<<(std::ostream& out, PairMatching matching);
+
 /// What the pipeline produced for one image.
 struct FrameResult {
   /// kValid when the frame has an estimate; otherwise why not (see frame_status.h). Skipped
@@ -52,10 +68,11 @@ struct FrameResult {
   /// Covariance of angular_velocity [(rad/s)^2] = rotation covariance / dt^2.
   Eigen::Matrix3d angular_velocity_covariance = Eigen::Matrix3d::Identity();
   int features = 0;                 ///< keypoints described in this frame
-  /// How this frame was matched: "guided" (around the rotation prior's prediction), "global"
-  /// (no prior, or matching = global), "global_fallback" (guided found too few matches, or its
-  /// matches gave no valid estimate); "" when not matched (first frame, rejected image).
-  std::string matching;
+  /// How this frame was matched: kGuided (around the rotation prior's prediction), kGlobal (no
+  /// prior, matching = global, or the half-resolution matches were kept), kGlobalFallback (guided
+  /// found too few matches, or its matches gave no valid estimate); kNone when not matched (first
+  /// frame, rejected image).
+  PairMatching matching = PairMatching::kNone;
   /// Of the pairs below, how many are tracked corners (FrontEndSettings::track_unmatched); they
   /// come after the descriptor matches.
   int tracked = 0;
@@ -243,7 +260,7 @@ class VisualGyro {
   std::vector<double> parallax_scratch_;  // per-match parallax, reused
   ResidualCorrelation residual_correlation_;
   CalibrationFitMonitor calibration_fit_;
-  std::string matching_;  // how the last frame was matched (FrameResult::matching)
+  PairMatching matching_ = PairMatching::kNone;  // how the last frame was matched (FrameResult::matching)
   // Per-frame buffers, reused (swapped with the previous frame's) so that the steady state does not
   // allocate in the front end.
   std::vector<cv::Point2f> corners_;

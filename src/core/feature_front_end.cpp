@@ -168,7 +168,8 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
                   "with `track_unmatched`), every grid cell short of its share is detected again at this "
                   "threshold (at or above `fast_threshold`: off)"),
       enumField<S, MatchingMode>("matching", &S::matching,
-                                 {{"guided", MatchingMode::kGuided}, {"global", MatchingMode::kGlobal}},
+                                 {{matchingModeName(MatchingMode::kGuided), MatchingMode::kGuided},
+                                  {matchingModeName(MatchingMode::kGlobal), MatchingMode::kGlobal}},
                                  "`guided`: search each corner's match only near where the rotation prior puts it (global when "
                                  "there is no prior or too few are found); `global`: every descriptor against every other"),
       doubleField<S>("guided_radius_px", &S::guided_radius_px, 1.0, 10000.0, "px",
@@ -193,6 +194,8 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
   };
   return fields;
 }
+
+const char* matchingModeName(MatchingMode mode) { return mode == MatchingMode::kGlobal ? "global" : "guided"; }
 
 std::string validateFrontEndSettings(const FrontEndSettings& s) { return checkRanges(s, frontEndSettingFields()); }
 

@@ -113,6 +113,18 @@ std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt
   return "";
 }
 
+const char* pairMatchingName(PairMatching matching) {
+  switch (matching) {
+    case PairMatching::kGuided: return "guided";
+    case PairMatching::kGlobal: return "global";
+    case PairMatching::kGlobalFallback: return "global_fallback";
+    case PairMatching::kNone: break;
+  }
+  return "";
+}
+
+std::ostream& operator<<(std::ostream& out, PairMatching matching) { return out << pairMatchingName(matching); }
+
 double matchFootprint(const CameraModel& camera) {
   return (2.0 * kBriefHalfPatch + 1.0) / std::min(camera.fx(), camera.fy());
 }
@@ -305,7 +317,7 @@ bool VisualGyro::estimatePair(const cv::Mat& gray, double stamp, FrameResult* re
     result->status = FrameStatus::kNotEstimated;
     result->reason = "run_estimator is off: matches only";
   }
-  result->matching = half_resolution_used_ ? "global" : matching_;
+  result->matching = half_resolution_used_ ? PairMatching::kGlobal : matching_;
   result->half_resolution = half_resolution_used_;
   return true;
 }
@@ -320,7 +332,7 @@ void VisualGyro::alignMatches(const cv::Mat& gray, FrameTimes* times) {
 void VisualGyro::estimateRotation(const cv::Mat& gray, const RotationPrior& prior, double dt,
                                   FrameResult* result) {
   result->rotation = estimateAtBestResolution(prior, result);
-  if (!result->rotation.valid() && matching_ == "guided") fallBackToGlobal(gray, prior, result);
+  if (!result->rotation.valid() && matching_ == PairMatching::kGuided) fallBackToGlobal(gray, prior, result);
   if (result->rotation.valid()) {
     const std::string implausible = checkRatePlausible(result->rotation.rotation_vector, dt, settings_);
     if (!implausible.empty()) result->rotation.invalidate(FrameStatus::kImplausibleRate, implausible);
@@ -349,7 +361,7 @@ void VisualGyro::fallBackToGlobal(const cv::Mat& gray, const RotationPrior& prio
   result->times.match += elapsedMs(t0);
   alignMatches(gray, &result->times);
   matchHalfResolution(gray, &result->times);
-  matching_ = "global_fallback";
+  matching_ = PairMatching::kGlobalFallback;
   collectMatches(result);
   result->rotation = estimateAtBestResolution(prior, result);
   result->rotation.times += guided_times;
@@ -497,19 +509,19 @@ void VisualGyro::matchFrames(const RotationPrior& prior) {
   const FrontEndSettings& s = settings_.front_end;
   if (s.matching != MatchingMode::kGuided || !prior.valid) {
     front_end_.match(previous_features_, features_, &matches_);
-    matching_ = "global";
+    matching_ = PairMatching::kGlobal;
     return;
   }
   const Eigen::Matrix3d rotation = so3Exp(prior.rotation_vector);
   front_end_.predict(camera_, rotation, prior_uncertainty_rad_ + search_parallax_rad_,
                      previous_keypoint_bearings_, &prediction_);
   front_end_.matchGuided(previous_features_, features_, prediction_, &matches_);
-  matching_ = "guided";
+  matching_ = PairMatching::kGuided;
   // Too few: the prior is probably wrong (a jolt, a bad last estimate); global matching does not
   // depend on it.
   if (static_cast<int>(matches_.size()) < s.guided_min_matches) {
     front_end_.match(previous_features_, features_, &matches_);
-    matching_ = "global_fallback";
+    matching_ = PairMatching::kGlobalFallback;
   }
 }
 

@@ -121,12 +121,11 @@ cv::Mat readPairImage(const Sequence& seq, size_t k, const FramePairOptions& o) 
   return gray;
 }
 
-/// Image k (`gray`) through the comparison front end `other` (named `name`): when it paired the
-/// image with the previous one (image previous_index), the pairs' bearings, dt and stage times.
+/// Image k (`gray`) through the comparison front end `other`: when it paired the image with the
+/// previous one (image previous_index), the pairs' bearings, dt and stage times.
 /// `previous_pixels` and `current_pixels` are working space. DataError for an image that is not
 /// the camera's size.
-FrameResult comparisonFrame(ComparisonFrontEnd* other, const std::string& name, const Sequence& seq, size_t k,
-                            size_t previous_index, const cv::Mat& gray, std::vector<cv::Point2f>* previous_pixels,
+FrameResult comparisonFrame(ComparisonFrontEnd* other, const Sequence& seq, size_t k, size_t previous_index, const cv::Mat& gray, std::vector<cv::Point2f>* previous_pixels,
                             std::vector<cv::Point2f>* current_pixels) {
   FrameResult r;
   if (gray.cols != seq.camera.width() || gray.rows != seq.camera.height()) {
@@ -137,7 +136,6 @@ FrameResult comparisonFrame(ComparisonFrontEnd* other, const std::string& name, 
   const bool paired = other->process(gray, previous_pixels, current_pixels, &r.times);
   if (paired) {
     r.dt = seq.stamps[k] - seq.stamps[previous_index];
-    r.matching = name;
     for (size_t i = 0; i < previous_pixels->size(); ++i) {
       r.previous_bearings.push_back(seq.camera.bearing((*previous_pixels)[i].x, (*previous_pixels)[i].y));
       r.current_bearings.push_back(seq.camera.bearing((*current_pixels)[i].x, (*current_pixels)[i].y));
@@ -212,8 +210,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
     const cv::Mat gray = readPairImage(seq, k, o);
     FrameResult r;
     if (other) {
-      r = comparisonFrame(other.get(), o.front_end, seq, k, previous_index, gray, &previous_pixels,
-                          &current_pixels);
+      r = comparisonFrame(other.get(), seq, k, previous_index, gray, &previous_pixels, &current_pixels);
     } else {
       r = gyro.processFrame(gray, seq.stamps[k]);
       if (r.status == FrameStatus::kTimeStepTooSmall) {

@@ -30,7 +30,8 @@ struct FramePair {
   double dt = 0.0;            ///< [s]
   std::vector<Eigen::Vector3d> previous, current;  ///< matched bearings (after max_matches/outliers)
   FrameTimes front_end;       ///< detect, describe, match of the current frame [ms]
-  std::string matching;       ///< native front end: guided, global or global_fallback
+  /// Native front end: how the pair was matched (FrameResult::matching); kNone for the others.
+  PairMatching matching = PairMatching::kNone;
   int tracked = 0;            ///< native front end: pairs that are tracked corners (before subsampling)
   bool half_resolution = false;  ///< native front end: matched at half resolution (FrameResult)
   /// Why the current image gave no matches and left the previous one in place, as

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,7 +46,8 @@ struct MethodSummary {
   double true_translation_mean = std::numeric_limits<double>::quiet_NaN();  ///< [m] (poses)
   std::string first_error;
   std::string front_end;  ///< native, orb or klt
-  std::string matching;   ///< native: the matching setting (guided, global); else ""
+  /// Native front end: the matching setting; empty for a comparison front end.
+  std::optional<MatchingMode> matching;
   double tracked_mean = 0;  ///< native: tracked corners per pair (FrontEndSettings::track_unmatched)
   int guided_pairs = 0;   ///< native: pairs matched guided by the prior
   int fallback_pairs = 0;  ///< native: pairs where guided matching fell back to global
