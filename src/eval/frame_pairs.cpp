@@ -156,7 +156,10 @@ FramePair makePair(const Sequence& seq, size_t previous_index, size_t k, bool un
   p.previous = std::move(r->previous_bearings);
   p.current = std::move(r->current_bearings);
   p.front_end = r->times;
-  if (unusable) p.unusable_image = std::string(frameStatusName(r->status)) + ": " + r->reason;
+  if (unusable) {
+    p.image_status = r->status;
+    p.unusable_image = std::string(frameStatusName(r->status)) + ": " + r->reason;
+  }
   p.matching = r->matching;
   p.tracked = r->tracked;
   p.half_resolution = r->half_resolution;

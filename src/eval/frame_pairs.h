@@ -34,9 +34,10 @@ struct FramePair {
   PairMatching matching = PairMatching::kNone;
   int tracked = 0;            ///< native front end: pairs that are tracked corners (before subsampling)
   bool half_resolution = false;  ///< native front end: matched at half resolution (FrameResult)
-  /// Why the current image gave no matches and left the previous one in place, as
-  /// "<frame status>: <reason>": bit-identical to the previous image (frozen_image) or without
-  /// texture (no_texture); "" for a usable image.
+  /// kFrozenImage (bit-identical to the previous image) or kNoTexture when the current image gave
+  /// no matches and left the previous one in place; kValid for a usable image.
+  FrameStatus image_status = FrameStatus::kValid;
+  /// Why the image was unusable, for people, as "<frame status>: <reason>"; "" for a usable image.
   std::string unusable_image;
   metrics::FrameTruth truth;  ///< the pair's reference
   double true_translation = std::numeric_limits<double>::quiet_NaN();  ///< camera displacement [m] (poses)

@@ -39,6 +39,7 @@ class OwnEstimatorRunner : public MethodRunner {
     out.refine_ms = r.times.refine;
     prior_.update(r, pair.dt);
     out.valid = r.valid();
+    out.status = r.status;
     if (!out.valid) out.error = std::string(frameStatusName(r.status)) + ": " + r.reason;
     out.inliers = r.inliers;
     out.pure_rotation = r.pure_rotation;
@@ -72,6 +73,7 @@ class BaselineRunner : public MethodRunner {
     MethodEstimate out;
     out.estimate_ms = elapsedMs(start);
     out.valid = r.valid;
+    out.status = r.status;
     out.error = r.error;
     if (r.valid) {
       out.rotation = r.rotation;
@@ -103,8 +105,9 @@ class PlausibilityRunner : public MethodRunner {
         pixel_angle_rad_(pixel_angle_rad) {}
 
   MethodEstimate run(const FramePair& pair) override {
-    if (!pair.unusable_image.empty()) {
+    if (pair.image_status != FrameStatus::kValid) {
       MethodEstimate out;
+      out.status = pair.image_status;
       out.error = pair.unusable_image;
       return out;
     }
@@ -113,7 +116,8 @@ class PlausibilityRunner : public MethodRunner {
       const std::string implausible = checkRatePlausible(out.rotation_vector, pair.dt, settings_);
       if (!implausible.empty()) {
         out.valid = false;
-        out.error = std::string(frameStatusName(FrameStatus::kImplausibleRate)) + ": " + implausible;
+        out.status = FrameStatus::kImplausibleRate;
+        out.error = std::string(frameStatusName(out.status)) + ": " + implausible;
         out.rotation.setIdentity();
         out.rotation_vector.setZero();
       }
@@ -132,7 +136,8 @@ class PlausibilityRunner : public MethodRunner {
     fit_.add(out->residual_correlation);
     if (!fit_.mismatch()) return;
     out->valid = false;
-    out->error = std::string(frameStatusName(FrameStatus::kCalibrationMismatch)) + ": " + fit_.describe();
+    out->status = FrameStatus::kCalibrationMismatch;
+    out->error = std::string(frameStatusName(out->status)) + ": " + fit_.describe();
     out->rotation.setIdentity();
     out->rotation_vector.setZero();
     out->translation.setZero();
