@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "visual_gyro/backend.h"
 #include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/camera_model.h"
 #include "visual_gyro/feature_front_end.h"
@@ -182,8 +183,8 @@ class VisualGyro {
 
   const CameraModel& camera() const { return camera_; }
   const VisualGyroSettings& settings() const { return settings_; }
-  /// "cpu" or "cuda".
-  std::string backendName() const { return estimator_->backendName(); }
+  /// The backend that votes this pipeline's estimates, chosen once at construction.
+  Backend backend() const { return backend_; }
 
  private:
   /// processFrame()'s checks, in this order, each leaving the state untouched: true (with the
@@ -245,6 +246,7 @@ class VisualGyro {
   VisualGyroSettings settings_;
   FeatureFrontEnd front_end_;
   std::unique_ptr<RotationEstimator> estimator_;
+  Backend backend_ = Backend::kCpu;  // estimator_'s
   bool has_previous_ = false;
   double previous_stamp_ = 0.0;
   cv::Mat previous_gray_;  ///< the last used image (own copy), to detect a frozen camera

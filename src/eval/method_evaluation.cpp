@@ -165,7 +165,7 @@ ImuAlignment alignGyroTruth(const Sequence& seq, size_t reference, std::vector<F
 std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   const metrics::AccuracySummary& a = s.accuracy;
   std::ostringstream out;
-  out << "== " << s.method << " on " << run.dataset << " (" << run.layout << ", backend " << s.backend << ")\n";
+  out << "== " << s.method << " on " << run.dataset << " (" << run.layout << ", backend " << backendName(s.backend) << ")\n";
   out << "   frames " << a.frames << ", invalid " << a.invalid
       << " (invalid frames count as identity rotation in the errors)";
   if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
@@ -236,7 +236,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
   j.add("dataset", run.dataset).add("method", s.method);
   metrics::addAccuracyFields(a, &j);
   j.add("ms_per_frame", times)
-      .add("backend", s.backend)
+      .add("backend", backendName(s.backend))
       .add("matches_mean", s.matches_mean)
       .add("tracked_mean", s.tracked_mean)
       .add("front_end", s.front_end)

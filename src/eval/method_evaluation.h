@@ -37,7 +37,8 @@ struct FrameRow {
 
 /// One method over all pairs.
 struct MethodSummary {
-  std::string method, backend;
+  std::string method;
+  Backend backend = Backend::kCpu;
   std::vector<FrameRow> rows;
   metrics::AccuracySummary accuracy;
   double detect = 0, describe = 0, match = 0, align = 0, estimate = 0, total = 0;  ///< mean ms per frame

@@ -22,7 +22,8 @@ class OwnEstimatorRunner : public MethodRunner {
                      uint32_t disabled_parts)
       : estimator_(createRotationEstimator(settings, [](const std::string& w) {
           std::cerr << "warning: " << w << "\n";
-        })) {
+        })),
+        backend_(backendNamed(estimator_->backendName())) {
     estimator_->setDisabledParts(disabled_parts);
     estimator_->setRefinedPositions(refined_positions);
     estimator_->setMatchFootprint(match_footprint);
@@ -35,7 +36,7 @@ class OwnEstimatorRunner : public MethodRunner {
     MethodEstimate out;
     out.estimate_ms = elapsedMs(start);
     out.vote_ms = r.times.vote;
-    out.vote_device_ms = r.backend == "cuda" ? r.times.vote_device : std::numeric_limits<double>::quiet_NaN();
+    out.vote_device_ms = backend_ == Backend::kCuda ? r.times.vote_device : std::numeric_limits<double>::quiet_NaN();
     out.refine_ms = r.times.refine;
     prior_.update(r, pair.dt);
     out.valid = r.valid();
@@ -53,10 +54,11 @@ class OwnEstimatorRunner : public MethodRunner {
     }
     return out;
   }
-  std::string backend() const override { return estimator_->backendName(); }
+  Backend backend() const override { return backend_; }
 
  private:
   std::unique_ptr<RotationEstimator> estimator_;
+  Backend backend_;  // estimator_'s voter, fixed at its creation
   PriorTracker prior_;  // the same prior VisualGyro gives its estimator
 };
 
@@ -84,7 +86,7 @@ class BaselineRunner : public MethodRunner {
     }
     return out;
   }
-  std::string backend() const override { return "cpu"; }
+  Backend backend() const override { return Backend::kCpu; }
 
  private:
   std::string name_;
@@ -125,7 +127,7 @@ class PlausibilityRunner : public MethodRunner {
     if (out.valid && judge_calibration_) judgeCalibration(pair, &out);
     return out;
   }
-  std::string backend() const override { return inner_->backend(); }
+  Backend backend() const override { return inner_->backend(); }
 
  private:
   /// VisualGyro::checkCalibrationFit on the pair's bearings.

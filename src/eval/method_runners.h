@@ -11,6 +11,7 @@
 
 #include "baselines.h"
 #include "frame_pairs.h"
+#include "visual_gyro/backend.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
 
@@ -55,8 +56,8 @@ class MethodRunner {
   virtual ~MethodRunner() = default;
   /// Estimates the pair's rotation.
   virtual MethodEstimate run(const FramePair& pair) = 0;
-  /// "cpu" or "cuda".
-  virtual std::string backend() const = 0;
+  /// The backend that votes its estimates (kCpu for the baselines).
+  virtual Backend backend() const = 0;
 };
 
 /// True for the package's own methods (vote, paper, and vote without one part:

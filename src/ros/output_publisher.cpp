@@ -60,7 +60,7 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   msg->winning_votes = count(rot.winning_votes);
   msg->inliers = count(rot.inliers);
   msg->method = settings.method;
-  msg->backend = frame.backend;
+  msg->backend = backendName(frame.backend);
   msg->detect_ms = result.times.detect;
   msg->describe_ms = result.times.describe;
   msg->match_ms = result.times.match;

@@ -39,7 +39,7 @@ struct FrameOutput {
   double previous_stamp = 0.0;    ///< that previous image's stamp [s]
   const FrameResult* result = nullptr;
   bool valid = false;             ///< paired and result->hasEstimate(): the estimate can be trusted
-  std::string backend;            ///< the backend that estimated it
+  Backend backend = Backend::kCpu;  ///< the backend that estimated it
   ros::WallTime wall_start;       ///< when the image callback began (latency)
 };
 

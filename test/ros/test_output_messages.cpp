@@ -43,7 +43,7 @@ FrameOutput frameOf(const FrameResult& r, bool valid) {
   f.previous_stamp = 10.0;
   f.result = &r;
   f.valid = valid;
-  f.backend = "cpu";
+  f.backend = visual_gyro::Backend::kCpu;
   return f;
 }
 
@@ -53,6 +53,7 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
   settings.method = "vote";
   const auto msg = om::rotationEstimate(frameOf(r, true), std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   EXPECT_TRUE(msg->valid);
+  EXPECT_EQ(msg->backend, "cpu");
   EXPECT_EQ(msg->status, "");
   EXPECT_NEAR(msg->dt, 0.1, 1e-12);
   EXPECT_NEAR(msg->yaw, 0.02, 1e-12);
