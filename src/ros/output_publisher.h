@@ -55,10 +55,13 @@ std::string statusText(const FrameResult& result, bool valid);
 visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, const std_msgs::Header& header,
                                                   const Eigen::Matrix3d& to_output, const OutputSettings& settings);
 
-/// The Imu for `estimate` (REP 145: no orientation, no acceleration): its rate and covariance when
-/// valid; when invalid, null unless settings.publish_invalid, then a zero rate with
-/// invalid_variance on the diagonal, so that a filter barely moves.
-sensor_msgs::ImuPtr imu(const visual_gyro::RotationEstimate& estimate, const OutputSettings& settings);
+/// The Imu of `frame` (had_previous must be true; REP 145: no orientation, no acceleration) with
+/// `header`: when valid, its rate and rate covariance rotated into the output frame by `to_output`
+/// (output <- camera), as in its RotationEstimate; when invalid, null unless
+/// settings.publish_invalid, then a zero rate with invalid_variance on the diagonal, so that a
+/// filter barely moves.
+sensor_msgs::ImuPtr imu(const FrameOutput& frame, const std_msgs::Header& header, const Eigen::Matrix3d& to_output,
+                        const OutputSettings& settings);
 
 }  // namespace output_messages
 
