@@ -259,6 +259,11 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     return;
   }
   if (reset_pending_.exchange(false)) resetState("inputs re-subscribed");
+  // The node's own stamp policy, not a copy of the pipeline's checks: a stamp jumping back (a bag
+  // played in a loop) or a gap above ~max_gap (a node parameter) resets the state so that the
+  // pipeline takes the frame as a first one, and a repeated stamp is reported as equal_stamp before
+  // the image is converted or the camera looked at. Whatever passes here still meets the
+  // pipeline's checks (FrameStatus kStampRejected, kTimeStepTooSmall), reported below.
   if (have_previous_) {
     if (stamp == previous_stamp_) {
       NODELET_WARN_THROTTLE(10.0, "visual_gyro: image stamp %.6f equals the previous one; frame skipped", stamp);
