@@ -156,11 +156,11 @@ TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
     results.push_back(gyro.processFrame(vg::renderView(scene, yawPitch(yaws[k], 0.0), Eigen::Vector3d::Zero()),
                                         1.0 + 0.05 * k));
   }
-  EXPECT_EQ(results[0].matching, "");
-  EXPECT_EQ(results[1].matching, "global");  // no prior yet
-  EXPECT_EQ(results[2].matching, "guided");
-  EXPECT_EQ(results[3].matching, "guided");
-  EXPECT_EQ(results[4].matching, "global_fallback");  // the prior says +2 deg, the camera turned -10
+  EXPECT_EQ(results[0].matching, vg::PairMatching::kNone);
+  EXPECT_EQ(results[1].matching, vg::PairMatching::kGlobal);  // no prior yet
+  EXPECT_EQ(results[2].matching, vg::PairMatching::kGuided);
+  EXPECT_EQ(results[3].matching, vg::PairMatching::kGuided);
+  EXPECT_EQ(results[4].matching, vg::PairMatching::kGlobalFallback);  // the prior says +2 deg, the camera turned -10
   for (int k = 1; k < 5; ++k) {
     ASSERT_TRUE(results[k].hasEstimate()) << "frame " << k << ": " << results[k].reason;
     const Eigen::Matrix3d truth = yawPitch(yaws[k - 1], 0.0).transpose() * yawPitch(yaws[k], 0.0);
@@ -171,11 +171,11 @@ TEST(GuidedMatching, WrongPriorFallsBackToGlobalMatching) {
   gyro.reset();
   gyro.processFrame(vg::renderView(scene, yawPitch(0.0, 0.0), Eigen::Vector3d::Zero()), 2.0);
   EXPECT_EQ(gyro.processFrame(vg::renderView(scene, yawPitch(2.0, 0.0), Eigen::Vector3d::Zero()), 2.05).matching,
-            "global");
+            vg::PairMatching::kGlobal);
   settings.front_end.matching = vg::MatchingMode::kGlobal;
   gyro.setSettings(settings);
   EXPECT_EQ(gyro.processFrame(vg::renderView(scene, yawPitch(4.0, 0.0), Eigen::Vector3d::Zero()), 2.1).matching,
-            "global");
+            vg::PairMatching::kGlobal);
 }
 
 // Near structure under sideways motion: points move from where the rotation puts them by their
@@ -198,7 +198,7 @@ TEST(GuidedMatching, SearchCoversTheParallaxOfTheLastPair) {
     const vg::FrameResult b = global.processFrame(image, 1.0 + 0.05 * k);
     if (k < 3) continue;  // the first pairs settle the prior and the measured parallax
     ASSERT_TRUE(a.hasEstimate()) << "frame " << k << ": " << a.reason;
-    EXPECT_EQ(a.matching, "guided") << "frame " << k;
+    EXPECT_EQ(a.matching, vg::PairMatching::kGuided) << "frame " << k;
     guided_matches += static_cast<int>(a.previous_bearings.size()) - a.tracked;
     global_matches += static_cast<int>(b.previous_bearings.size()) - b.tracked;
   }

@@ -99,7 +99,7 @@ TEST(Pipeline, HeavyMotionBlurIsMatchedAtHalfResolution) {
       r.sum_nees += v.dot(frame.rotation.covariance.inverse() * v);
       if (frame.half_resolution) {
         ++r.half;
-        EXPECT_EQ(frame.matching, "global") << "frame " << k;
+        EXPECT_EQ(frame.matching, vg::PairMatching::kGlobal) << "frame " << k;
         // Full-resolution coordinates: inside the image, spread over it.
         cv::Rect2f spread(cv::Point2f(1e9f, 1e9f), cv::Point2f(-1e9f, -1e9f));
         for (const cv::Point2f& p : frame.current_pixels) {

@@ -23,6 +23,8 @@ enum class MatchingMode {
   kGuided,  ///< around where the rotation prior predicts each corner (global without a prior)
   kGlobal,  ///< every descriptor against every other
 };
+/// The setting's text of a mode: "guided" or "global".
+const char* matchingModeName(MatchingMode mode);
 
 /// Settings of the front end. Ranges, units and docs: frontEndSettingFields().
 struct FrontEndSettings {
@@ -235,6 +237,36 @@ class FeatureFrontEnd {
     std::vector<cv::Point2f> track_moves, cell_moves;
     std::vector<double> median_x, median_y;
   };
+
+  /// One detection's image and grid geometry (defined in the .cpp).
+  struct DetectGrid;
+  /// The geometry of a detection on a width x height image; (re)builds the workspace's
+  /// pixel-to-cell lookup when the size or the grid changed.
+  DetectGrid detectGrid(int width, int height) const;
+  /// Appends the corners from work_.corners[from] on that keep the border distance and lie in grid
+  /// row cy's cells cx0 .. cx1 (every cell: cy < 0) to the candidates, counted per cell; returns
+  /// how many of them reach fast_threshold.
+  int addCorners(const DetectGrid& grid, size_t from, int cy, int cx0, int cx1) const;
+  /// The strong pass when the last detection's short cells are known: FAST at fast_threshold on
+  /// the runs of cells not guessed short (a cell guessed short gets its strong corners from
+  /// redetectShortCells()).
+  void detectCellsGuessedFull(const cv::Mat& gray, const DetectGrid& grid) const;
+  /// Adaptive pass: every cell with fewer candidates than its share is detected again at
+  /// min_fast_threshold, its strong-pass corners replaced by those (only their strong ones when
+  /// they fill its share).
+  void redetectShortCells(const cv::Mat& gray, const DetectGrid& grid) const;
+  /// Bucketing of the candidates into `keypoints`: each cell's share of its strongest corners,
+  /// then the strongest left anywhere up to max_features, strongest first.
+  void selectCorners(const DetectGrid& grid, std::vector<cv::Point2f>* keypoints) const;
+  /// trackUnmatched()'s first step: marks the matched previous keypoints (work_.matched) and
+  /// groups the matches' displacements [px] by the grid cell of their previous keypoint
+  /// (work_.track_moves, cell starts in work_.track_cell_start) on images of `size`. Throws
+  /// std::invalid_argument for a match whose indices refer to no keypoint.
+  void groupMovesByCell(const FrameFeatures& previous, const FrameFeatures& current,
+                        const std::vector<FeatureMatch>& matches, const cv::Size& size) const;
+  /// trackUnmatched()'s second step: each cell's predicted displacement (work_.cell_moves), the
+  /// median of its own matches', else of the 3 x 3 cells around it, else of all.
+  void medianMovesByCell() const;
 
   FrontEndSettings settings_;
   mutable Workspace work_;

@@ -4,12 +4,14 @@
 
 #include <limits>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "visual_gyro/backend.h"
 #include "visual_gyro/calibration_fit.h"
 #include "visual_gyro/camera_model.h"
 #include "visual_gyro/feature_front_end.h"
@@ -34,6 +36,21 @@ struct FrameTimes {
   double total = 0.0;  ///< the whole frame, checks included
 };
 
+/// How a frame was paired with the previous one (FrameResult::matching).
+enum class PairMatching {
+  kNone,            ///< not matched (first frame, rejected image)
+  kGuided,          ///< around where the rotation prior predicts each corner
+  kGlobal,          ///< every descriptor against every other (no prior, matching = global)
+  /// Global after guided matching found too few matches or its matches gave no valid estimate.
+  kGlobalFallback,
+};
+
+/// The text of a PairMatching as logs and docs name it: "" (kNone), "guided", "global",
+/// "global_fallback".
+const char* pairMatchingName(PairMatching matching);
+/// Writes pairMatchingName(matching).
+std::ostream& operator<<(std::ostream& out, PairMatching matching);
+
 /// What the pipeline produced for one image.
 struct FrameResult {
   /// kValid when the frame has an estimate; otherwise why not (see frame_status.h). Skipped
@@ -52,10 +69,11 @@ struct FrameResult {
   /// Covariance of angular_velocity [(rad/s)^2] = rotation covariance / dt^2.
   Eigen::Matrix3d angular_velocity_covariance = Eigen::Matrix3d::Identity();
   int features = 0;                 ///< keypoints described in this frame
-  /// How this frame was matched: "guided" (around the rotation prior's prediction), "global"
-  /// (no prior, or matching = global), "global_fallback" (guided found too few matches, or its
-  /// matches gave no valid estimate); "" when not matched (first frame, rejected image).
-  std::string matching;
+  /// How this frame was matched: kGuided (around the rotation prior's prediction), kGlobal (no
+  /// prior, matching = global, or the half-resolution matches were kept), kGlobalFallback (guided
+  /// found too few matches, or its matches gave no valid estimate); kNone when not matched (first
+  /// frame, rejected image).
+  PairMatching matching = PairMatching::kNone;
   /// Of the pairs below, how many are tracked corners (FrontEndSettings::track_unmatched); they
   /// come after the descriptor matches.
   int tracked = 0;
@@ -165,10 +183,40 @@ class VisualGyro {
 
   const CameraModel& camera() const { return camera_; }
   const VisualGyroSettings& settings() const { return settings_; }
-  /// "cpu" or "cuda".
-  std::string backendName() const { return estimator_->backendName(); }
+  /// The backend that votes this pipeline's estimates, chosen once at construction.
+  Backend backend() const { return backend_; }
 
  private:
+  /// processFrame()'s checks, in this order, each leaving the state untouched: true (with the
+  /// status and reason in `result`) when the image is unusable (kImageRejected: empty, not
+  /// CV_8UC1, not the camera's size, smaller than kMinImageSide).
+  bool rejectImage(const cv::Mat& gray, FrameResult* result) const;
+  /// True when `stamp` [s] is not finite or not after the previous one (kStampRejected), or less
+  /// than min_dt after it (kTimeStepTooSmall, dt set).
+  bool rejectStamp(double stamp, FrameResult* result) const;
+  /// True when the image has no texture (kNoTexture) or repeats the previous one (kFrozenImage);
+  /// dt is set when there is a previous frame.
+  bool rejectContent(const cv::Mat& gray, double stamp, FrameResult* result) const;
+  /// Detects and describes `gray` into features_ and bearings_ (their stage times and the feature
+  /// count into `result`); false (kFrontEndFailed, or kNoTexture without a corner) when the frame
+  /// cannot be used.
+  bool describeFrame(const cv::Mat& gray, double stamp, FrameResult* result);
+  /// Matches the previous frame to this one and, when run_estimator, estimates their rotation
+  /// into `result`; false (kFrontEndFailed) when the front end threw before any state changed.
+  bool estimatePair(const cv::Mat& gray, double stamp, FrameResult* result);
+  /// Sub-pixel refinement of matches_ and tracking of the unmatched corners into tracks_; adds
+  /// its time to times->align.
+  void alignMatches(const cv::Mat& gray, FrameTimes* times);
+  /// Estimates the rotation over `dt` [s] from the matches in `result` (global matching again
+  /// when guided matches gave no estimate), checks it (rate, calibration fit), updates the prior
+  /// and the guided search, and sets the status, angular velocity and estimate time.
+  void estimateRotation(const cv::Mat& gray, const RotationPrior& prior, double dt, FrameResult* result);
+  /// Replaces guided matches that gave no estimate by global ones and estimates again; both
+  /// estimates' times count.
+  void fallBackToGlobal(const cv::Mat& gray, const RotationPrior& prior, FrameResult* result);
+  /// Makes this frame (`gray` at `stamp` [s], its features and half-resolution data) the previous
+  /// one.
+  void keepAsPrevious(const cv::Mat& gray, double stamp);
   /// Matches previous_features_ to features_ into matches_: guided by `prior` when usable, else
   /// (or when guided finds too few) global. Sets matching_.
   void matchFrames(const RotationPrior& prior);
@@ -198,6 +246,7 @@ class VisualGyro {
   VisualGyroSettings settings_;
   FeatureFrontEnd front_end_;
   std::unique_ptr<RotationEstimator> estimator_;
+  Backend backend_ = Backend::kCpu;  // estimator_'s
   bool has_previous_ = false;
   double previous_stamp_ = 0.0;
   cv::Mat previous_gray_;  ///< the last used image (own copy), to detect a frozen camera
@@ -213,7 +262,7 @@ class VisualGyro {
   std::vector<double> parallax_scratch_;  // per-match parallax, reused
   ResidualCorrelation residual_correlation_;
   CalibrationFitMonitor calibration_fit_;
-  std::string matching_;  // how the last frame was matched (FrameResult::matching)
+  PairMatching matching_ = PairMatching::kNone;  // how the last frame was matched (FrameResult::matching)
   // Per-frame buffers, reused (swapped with the previous frame's) so that the steady state does not
   // allocate in the front end.
   std::vector<cv::Point2f> corners_;

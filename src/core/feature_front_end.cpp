@@ -24,6 +24,15 @@ namespace {
 // Corners must keep this distance from the border (the BRIEF patch plus one pixel of margin, so a
 // keypoint that moves by rounding still has its whole patch inside the image).
 constexpr int kDetectBorder = kBriefHalfPatch + 1;
+// What a kept corner's FAST tests read beyond it: its 3 px circle, and the scores of its
+// neighbours for the non-max suppression, 1 px further.
+constexpr int kFastMargin = 4;
+constexpr int kFastRadius = 3;
+
+/// Whether FAST can run on `area` (its circle fits).
+bool fastFits(const cv::Rect& area) {
+  return area.width >= 2 * kFastRadius + 1 && area.height >= 2 * kFastRadius + 1;
+}
 
 void checkImage(const cv::Mat& gray, const char* where) {
   if (gray.empty()) {
@@ -159,7 +168,8 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
                   "with `track_unmatched`), every grid cell short of its share is detected again at this "
                   "threshold (at or above `fast_threshold`: off)"),
       enumField<S, MatchingMode>("matching", &S::matching,
-                                 {{"guided", MatchingMode::kGuided}, {"global", MatchingMode::kGlobal}},
+                                 {{matchingModeName(MatchingMode::kGuided), MatchingMode::kGuided},
+                                  {matchingModeName(MatchingMode::kGlobal), MatchingMode::kGlobal}},
                                  "`guided`: search each corner's match only near where the rotation prior puts it (global when "
                                  "there is no prior or too few are found); `global`: every descriptor against every other"),
       doubleField<S>("guided_radius_px", &S::guided_radius_px, 1.0, 10000.0, "px",
@@ -184,6 +194,8 @@ const std::vector<SettingField<FrontEndSettings>>& frontEndSettingFields() {
   };
   return fields;
 }
+
+const char* matchingModeName(MatchingMode mode) { return mode == MatchingMode::kGlobal ? "global" : "guided"; }
 
 std::string validateFrontEndSettings(const FrontEndSettings& s) { return checkRanges(s, frontEndSettingFields()); }
 
@@ -210,21 +222,54 @@ std::vector<cv::Point2f> FeatureFrontEnd::detect(const cv::Mat& gray) const {
   return keypoints;
 }
 
-void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keypoints) const {
-  checkImage(gray, "detect");
-  checkSettings(settings_);  // setSettings() does not validate
-  keypoints->clear();
-  const int width = gray.cols, height = gray.rows;
-  // No pixel can keep the border distance: nothing to detect (not an error).
-  if (width < 2 * kDetectBorder + 1 || height < 2 * kDetectBorder + 1) return;
+/// One detection's image and bucketing grid: which pixels may hold a corner, the cell of a
+/// corner (through the workspace's per-column and per-row lookup), and where FAST must run to
+/// find a run of cells' corners.
+struct FeatureFrontEnd::DetectGrid {
+  int width = 0, height = 0;  ///< image size [px]
+  int cols = 0, rows = 0;     ///< bucketing grid
+  int n_cells = 0;
+  size_t budget = 0;  ///< max_features
+  int per_cell = 0;   ///< each cell's share of the budget
+  const int* cell_of_x = nullptr;  ///< grid column of each pixel column
+  const int* cell_of_y = nullptr;  ///< first cell of the grid row of each pixel row
+  /// Where FAST runs for the whole image: where a corner can be kept, widened by what the kept
+  /// corners' tests read (their 3 px circle, and the scores of their neighbours for the non-max
+  /// suppression, 1 px further): the same corners as on the whole image, without scoring the
+  /// border strip that is dropped.
+  cv::Rect fast_area;
+  cv::Rect whole_image;
 
-  Workspace& w = work_;
-  const int cols = settings_.grid_cols, rows = settings_.grid_rows;
-  const int n_cells = cols * rows;
-  auto inside = [&](int x, int y) {
+  /// Whether (x, y) keeps the border distance.
+  bool inside(int x, int y) const {
     return !(x < kDetectBorder || y < kDetectBorder || x > width - 1 - kDetectBorder ||
              y > height - 1 - kDetectBorder);
-  };
+  }
+  /// Cell of a candidate key (FAST corners lie on whole pixels inside the image).
+  int cellOf(uint64_t key) const { return cell_of_x[keyX(key)] + cell_of_y[keyY(key)]; }
+  /// Cells [cx0, cx1] of grid row cy as cell_of_x and cell_of_y assign them: x in [x0, x1), y in
+  /// [y0, y1).
+  cv::Rect cellBounds(int cx0, int cx1, int cy) const {
+    const int x0 = (cx0 * width + cols - 1) / cols, x1 = ((cx1 + 1) * width + cols - 1) / cols;
+    const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
+    return cv::Rect(x0, y0, x1 - x0, y1 - y0);
+  }
+  /// Cells [cx0, cx1] of grid row cy widened by kFastMargin, inside `limit`: FAST there gives the
+  /// cells' corners exactly as FAST on all of `limit` does.
+  cv::Rect searchArea(int cx0, int cx1, int cy, const cv::Rect& limit) const {
+    const cv::Rect cells = cellBounds(cx0, cx1, cy);
+    return cv::Rect(cells.x - kFastMargin, cells.y - kFastMargin, cells.width + 2 * kFastMargin,
+                    cells.height + 2 * kFastMargin) &
+           limit;
+  }
+  /// Whether FAST can run on cell c's own search area (a cell too small for it keeps what the
+  /// strong pass found).
+  bool cellFits(int c) const { return fastFits(searchArea(c % cols, c % cols, c / cols, whole_image)); }
+};
+
+FeatureFrontEnd::DetectGrid FeatureFrontEnd::detectGrid(int width, int height) const {
+  Workspace& w = work_;
+  const int cols = settings_.grid_cols, rows = settings_.grid_rows;
   // Grid cell of each pixel column and row (cell = row cell * cols + column cell), looked up
   // rather than divided per corner; rebuilt only when the image size or the grid changes.
   if (w.cell_of_x.size() != static_cast<size_t>(width) || w.cell_of_y.size() != static_cast<size_t>(height) ||
@@ -235,38 +280,32 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
     for (int y = 0; y < height; ++y) w.cell_of_y[y] = std::min(rows - 1, y * rows / height) * cols;
     w.grid_size = cv::Size(cols, rows);
   }
-  // FAST corners lie on whole pixels inside the image.
-  auto cellOf = [&](uint64_t key) { return w.cell_of_x[keyX(key)] + w.cell_of_y[keyY(key)]; };
-
-  const size_t budget = static_cast<size_t>(settings_.max_features);
-  const int per_cell = static_cast<int>(budget / n_cells);
-
-  // FAST only where a corner can be kept, widened by what the kept corners' tests read (their
-  // 3 px circle, and the scores of their neighbours for the non-max suppression, 1 px further):
-  // the same corners as on the whole image, without scoring the border strip that is dropped.
-  constexpr int kFastMargin = 4;
+  DetectGrid grid;
+  grid.width = width;
+  grid.height = height;
+  grid.cols = cols;
+  grid.rows = rows;
+  grid.n_cells = cols * rows;
+  grid.budget = static_cast<size_t>(settings_.max_features);
+  grid.per_cell = static_cast<int>(grid.budget / grid.n_cells);
+  grid.cell_of_x = w.cell_of_x.data();
+  grid.cell_of_y = w.cell_of_y.data();
   const int margin = kDetectBorder - kFastMargin;
-  const cv::Rect fast_area(margin, margin, width - 2 * margin, height - 2 * margin);
-  // Cell bounds as cell_of_x and cell_of_y assign them: x in [x0, x1), y in [y0, y1).
-  auto cellBounds = [&](int cx0, int cx1, int cy) {
-    const int x0 = (cx0 * width + cols - 1) / cols, x1 = ((cx1 + 1) * width + cols - 1) / cols;
-    const int y0 = (cy * height + rows - 1) / rows, y1 = ((cy + 1) * height + rows - 1) / rows;
-    return cv::Rect(x0, y0, x1 - x0, y1 - y0);
-  };
-  // Cells [cx0, cx1] of grid row cy widened by kFastMargin, inside `limit`: FAST there gives the
-  // cells' corners exactly as FAST on all of `limit` does.
-  auto searchArea = [&](int cx0, int cx1, int cy, const cv::Rect& limit) {
-    const cv::Rect cells = cellBounds(cx0, cx1, cy);
-    return cv::Rect(cells.x - kFastMargin, cells.y - kFastMargin, cells.width + 2 * kFastMargin,
-                    cells.height + 2 * kFastMargin) &
-           limit;
-  };
-  constexpr int kFastRadius = 3;
-  auto fastFits = [&](const cv::Rect& area) {
-    return area.width >= 2 * kFastRadius + 1 && area.height >= 2 * kFastRadius + 1;
-  };
-  const cv::Rect whole_image(0, 0, width, height);
+  grid.fast_area = cv::Rect(margin, margin, width - 2 * margin, height - 2 * margin);
+  grid.whole_image = cv::Rect(0, 0, width, height);
+  return grid;
+}
 
+void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keypoints) const {
+  checkImage(gray, "detect");
+  checkSettings(settings_);  // setSettings() does not validate
+  keypoints->clear();
+  const int width = gray.cols, height = gray.rows;
+  // No pixel can keep the border distance: nothing to detect (not an error).
+  if (width < 2 * kDetectBorder + 1 || height < 2 * kDetectBorder + 1) return;
+
+  Workspace& w = work_;
+  const DetectGrid grid = detectGrid(width, height);
   // Adaptive threshold: when the strong corners cannot fill the budget, each cell short of its
   // share is detected again at the floor threshold, as ORB-SLAM does, so dim or low-contrast
   // regions still contribute corners while textured ones keep only their strong corners. When
@@ -277,98 +316,109 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   // threshold at which a pixel is still a corner, and non-max suppression compares scores, so a
   // cell's corners at the floor whose score reaches fast_threshold are its strong corners: a
   // cell holds its strong corners when they fill its share, else all its corners at the floor.
-  const bool adaptive = settings_.min_fast_threshold < settings_.fast_threshold && per_cell > 0;
+  const bool adaptive = settings_.min_fast_threshold < settings_.fast_threshold && grid.per_cell > 0;
   // With tracking every short cell is detected at the floor, so a cell the last frame found short
   // (and likely short again) is detected at the floor only: its strong corners come from that
   // pass. A wrong guess costs time, not corners: a skipped cell that turns out to hold its share
   // keeps only its strong corners, and a scanned one that falls short is detected again.
-  const std::array<int, 7> short_key = {width, height, cols, rows, settings_.fast_threshold,
-                                        settings_.min_fast_threshold, per_cell};
+  const std::array<int, 7> short_key = {width, height, grid.cols, grid.rows, settings_.fast_threshold,
+                                        settings_.min_fast_threshold, grid.per_cell};
   const bool guess_short = adaptive && settings_.track_unmatched && w.short_cells_key == short_key &&
-                           w.short_cells.size() == static_cast<size_t>(n_cells);
+                           w.short_cells.size() == static_cast<size_t>(grid.n_cells);
   w.corners.clear();
   w.candidates.clear();
-  w.cell_count.assign(n_cells, 0);
-  // Appends the corners from w.corners[from] on that keep the border distance and lie in grid row
-  // cy's cells cx0 .. cx1 (every cell: cy < 0) to the candidates, counted per cell; returns how
-  // many of them reach fast_threshold.
-  auto addCorners = [&](size_t from, int cy, int cx0, int cx1) {
-    int strong = 0;
-    for (size_t k = from; k < w.corners.size(); ++k) {
-      const cv::Point3i& corner = w.corners[k];
-      if (!inside(corner.x, corner.y)) continue;
-      const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
-      const int cell = cellOf(key);
-      if (cy >= 0 && (cell / cols != cy || cell % cols < cx0 || cell % cols > cx1)) continue;  // in the margin
-      w.candidates.push_back(key);
-      ++w.cell_count[cell];
-      strong += corner.z >= settings_.fast_threshold;
-    }
-    return strong;
-  };
-  // Whether FAST can run on cell c's own search area (a cell too small for it keeps what the
-  // strong pass found).
-  auto cellFits = [&](int c) { return fastFits(searchArea(c % cols, c % cols, c / cols, whole_image)); };
+  w.cell_count.assign(grid.n_cells, 0);
   if (!guess_short) {
     // The package's FAST detector: cv::FAST's corners and scores on the same area, in less time.
-    fast_detector::detect(gray, fast_area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
-    addCorners(0, -1, 0, cols - 1);
+    fast_detector::detect(gray, grid.fast_area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
+    addCorners(grid, 0, -1, 0, grid.cols - 1);
   } else {
-    // Runs of cells guessed full, one grid row at a time.
-    auto skipped = [&](int c) { return w.short_cells[c] && cellFits(c); };
-    for (int cy = 0; cy < rows; ++cy) {
-      for (int cx = 0; cx < cols;) {
-        if (skipped(cy * cols + cx)) {
-          ++cx;
-          continue;
-        }
-        int end = cx;
-        while (end + 1 < cols && !skipped(cy * cols + end + 1)) ++end;
-        const cv::Rect area = searchArea(cx, end, cy, fast_area);
-        if (fastFits(area)) {
-          const size_t from = w.corners.size();
-          fast_detector::detect(gray, area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
-          addCorners(from, cy, cx, end);
-        }
-        cx = end + 1;
-      }
-    }
+    detectCellsGuessedFull(gray, grid);
   }
-
-  if (adaptive && (w.candidates.size() < budget || settings_.track_unmatched)) {
-    // The short cells' strong corners are replaced by everything found at the floor.
-    w.redetect.assign(n_cells, 0);
-    for (int c = 0; c < n_cells; ++c) w.redetect[c] = w.cell_count[c] < per_cell && cellFits(c);
-    w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
-                                      [&](uint64_t key) { return w.redetect[cellOf(key)] != 0; }),
-                       w.candidates.end());
-    for (int cell = 0; cell < n_cells; ++cell) {
-      if (!w.redetect[cell]) continue;
-      w.corners.clear();
-      fast_detector::detect(gray, searchArea(cell % cols, cell % cols, cell / cols, whole_image),
-                            settings_.min_fast_threshold, &w.fast_scratch, &w.corners);
-      const size_t first = w.candidates.size();
-      const int strong = addCorners(0, cell / cols, cell % cols, cell % cols);
-      w.cell_count[cell] = strong;
-      if (strong >= per_cell) {
-        // A cell guessed short that holds its share: its strong corners only.
-        w.candidates.erase(std::remove_if(w.candidates.begin() + static_cast<std::ptrdiff_t>(first),
-                                          w.candidates.end(),
-                                          [&](uint64_t key) {
-                                            return static_cast<int>(key >> 32) < settings_.fast_threshold;
-                                          }),
-                           w.candidates.end());
-      }
-    }
+  if (adaptive && (w.candidates.size() < grid.budget || settings_.track_unmatched)) {
+    redetectShortCells(gray, grid);
   }
   if (adaptive && settings_.track_unmatched) {
-    w.short_cells.resize(n_cells);
-    for (int c = 0; c < n_cells; ++c) w.short_cells[c] = w.cell_count[c] < per_cell;
+    w.short_cells.resize(grid.n_cells);
+    for (int c = 0; c < grid.n_cells; ++c) w.short_cells[c] = w.cell_count[c] < grid.per_cell;
     w.short_cells_key = short_key;
   } else {
     w.short_cells.clear();
   }
+  selectCorners(grid, keypoints);
+}
 
+int FeatureFrontEnd::addCorners(const DetectGrid& grid, size_t from, int cy, int cx0, int cx1) const {
+  Workspace& w = work_;
+  int strong = 0;
+  for (size_t k = from; k < w.corners.size(); ++k) {
+    const cv::Point3i& corner = w.corners[k];
+    if (!grid.inside(corner.x, corner.y)) continue;
+    const uint64_t key = candidateKey(corner.z, corner.x, corner.y);
+    const int cell = grid.cellOf(key);
+    // In the margin of the cells FAST ran for.
+    if (cy >= 0 && (cell / grid.cols != cy || cell % grid.cols < cx0 || cell % grid.cols > cx1)) continue;
+    w.candidates.push_back(key);
+    ++w.cell_count[cell];
+    strong += corner.z >= settings_.fast_threshold;
+  }
+  return strong;
+}
+
+void FeatureFrontEnd::detectCellsGuessedFull(const cv::Mat& gray, const DetectGrid& grid) const {
+  Workspace& w = work_;
+  // Runs of cells guessed full, one grid row at a time.
+  auto skipped = [&](int c) { return w.short_cells[c] && grid.cellFits(c); };
+  for (int cy = 0; cy < grid.rows; ++cy) {
+    for (int cx = 0; cx < grid.cols;) {
+      if (skipped(cy * grid.cols + cx)) {
+        ++cx;
+        continue;
+      }
+      int end = cx;
+      while (end + 1 < grid.cols && !skipped(cy * grid.cols + end + 1)) ++end;
+      const cv::Rect area = grid.searchArea(cx, end, cy, grid.fast_area);
+      if (fastFits(area)) {
+        const size_t from = w.corners.size();
+        fast_detector::detect(gray, area, settings_.fast_threshold, &w.fast_scratch, &w.corners);
+        addCorners(grid, from, cy, cx, end);
+      }
+      cx = end + 1;
+    }
+  }
+}
+
+void FeatureFrontEnd::redetectShortCells(const cv::Mat& gray, const DetectGrid& grid) const {
+  Workspace& w = work_;
+  const int cols = grid.cols;
+  // The short cells' strong corners are replaced by everything found at the floor.
+  w.redetect.assign(grid.n_cells, 0);
+  for (int c = 0; c < grid.n_cells; ++c) w.redetect[c] = w.cell_count[c] < grid.per_cell && grid.cellFits(c);
+  w.candidates.erase(std::remove_if(w.candidates.begin(), w.candidates.end(),
+                                    [&](uint64_t key) { return w.redetect[grid.cellOf(key)] != 0; }),
+                     w.candidates.end());
+  for (int cell = 0; cell < grid.n_cells; ++cell) {
+    if (!w.redetect[cell]) continue;
+    w.corners.clear();
+    fast_detector::detect(gray, grid.searchArea(cell % cols, cell % cols, cell / cols, grid.whole_image),
+                          settings_.min_fast_threshold, &w.fast_scratch, &w.corners);
+    const size_t first = w.candidates.size();
+    const int strong = addCorners(grid, 0, cell / cols, cell % cols, cell % cols);
+    w.cell_count[cell] = strong;
+    if (strong >= grid.per_cell) {
+      // A cell guessed short that holds its share: its strong corners only.
+      w.candidates.erase(std::remove_if(w.candidates.begin() + static_cast<std::ptrdiff_t>(first),
+                                        w.candidates.end(),
+                                        [&](uint64_t key) {
+                                          return static_cast<int>(key >> 32) < settings_.fast_threshold;
+                                        }),
+                         w.candidates.end());
+    }
+  }
+}
+
+void FeatureFrontEnd::selectCorners(const DetectGrid& grid, std::vector<cv::Point2f>* keypoints) const {
+  Workspace& w = work_;
   // Bucketing: an equal share per cell first, so texture-rich regions cannot take the whole
   // budget; the unused share of sparse cells then goes to the strongest corners left anywhere.
   // One sort, strongest first: a cell's share is its first corners in that order, the leftovers
@@ -376,17 +426,17 @@ void FeatureFrontEnd::detect(const cv::Mat& gray, std::vector<cv::Point2f>* keyp
   sortKeysDescending(&w.candidates, &w.sort_scratch);
   const size_t n = w.candidates.size();
   w.chosen.assign(n, 0);
-  w.cell_count.assign(n_cells, 0);
+  w.cell_count.assign(grid.n_cells, 0);
   size_t selected = 0;
   for (size_t i = 0; i < n; ++i) {
-    int& taken = w.cell_count[cellOf(w.candidates[i])];
-    if (taken < per_cell) {
+    int& taken = w.cell_count[grid.cellOf(w.candidates[i])];
+    if (taken < grid.per_cell) {
       ++taken;
       w.chosen[i] = 1;
       ++selected;
     }
   }
-  for (size_t i = 0; i < n && selected < budget; ++i) {
+  for (size_t i = 0; i < n && selected < grid.budget; ++i) {
     if (w.chosen[i]) continue;
     w.chosen[i] = 1;
     ++selected;
@@ -717,29 +767,25 @@ double patchCorrelation(const cv::Mat& previous, int px, int py, const cv::Mat& 
 
 }  // namespace
 
-void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat& current_gray,
-                                     const FrameFeatures& previous, const FrameFeatures& current,
-                                     const std::vector<FeatureMatch>& matches,
-                                     std::vector<TrackedCorner>* tracks) const {
-  checkSettings(settings_);
-  checkFeatures(previous, current, "trackUnmatched");
-  tracks->clear();
-  constexpr size_t kMinMoves = 3;  // fewer matches say nothing about how a region moved
-  if (!settings_.track_unmatched || matches.size() < kMinMoves) return;
-  checkImage(previous_gray, "trackUnmatched");
-  checkImage(current_gray, "trackUnmatched");
-  if (previous_gray.size() != current_gray.size()) {
-    throw std::invalid_argument("FeatureFrontEnd::trackUnmatched: the images differ in size");
-  }
+namespace {
+
+// Fewer matches than this say nothing about how a region moved.
+constexpr size_t kMinTrackMoves = 3;
+
+/// The cell of the cols x rows bucketing grid over an image of `size` that holds `p` (positions
+/// outside the image count as the nearest cell).
+int trackCell(const cv::Point2f& p, const cv::Size& size, int cols, int rows) {
+  const int cx = std::clamp(static_cast<int>(p.x * cols / size.width), 0, cols - 1);
+  const int cy = std::clamp(static_cast<int>(p.y * rows / size.height), 0, rows - 1);
+  return cy * cols + cx;
+}
+
+}  // namespace
+
+void FeatureFrontEnd::groupMovesByCell(const FrameFeatures& previous, const FrameFeatures& current,
+                                       const std::vector<FeatureMatch>& matches, const cv::Size& size) const {
   Workspace& w = work_;
-  const int width = current_gray.cols, height = current_gray.rows;
   const int cols = settings_.grid_cols, rows = settings_.grid_rows, cells = cols * rows;
-  const auto cellOf = [&](const cv::Point2f& p) {
-    const int cx = std::clamp(static_cast<int>(p.x * cols / width), 0, cols - 1);
-    const int cy = std::clamp(static_cast<int>(p.y * rows / height), 0, rows - 1);
-    return cy * cols + cx;
-  };
-  // The matches' displacements, grouped by the cell of their previous corner.
   const size_t n_previous = previous.keypoints.size();
   w.matched.assign(n_previous, 0);
   w.track_cell_start.assign(cells + 1, 0);
@@ -750,15 +796,20 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
                                   std::to_string(m.previous) + " -> " + std::to_string(m.current) + ")");
     }
     w.matched[m.previous] = 1;
-    ++w.track_cell_start[cellOf(previous.keypoints[m.previous]) + 1];
+    ++w.track_cell_start[trackCell(previous.keypoints[m.previous], size, cols, rows) + 1];
   }
   for (int c = 0; c < cells; ++c) w.track_cell_start[c + 1] += w.track_cell_start[c];
   w.track_cell_cursor.assign(w.track_cell_start.begin(), w.track_cell_start.end() - 1);
   w.track_moves.resize(matches.size());
   for (const FeatureMatch& m : matches) {
     const cv::Point2f p = previous.keypoints[m.previous];
-    w.track_moves[w.track_cell_cursor[cellOf(p)]++] = current.keypoints[m.current] + m.offset - p;
+    w.track_moves[w.track_cell_cursor[trackCell(p, size, cols, rows)]++] = current.keypoints[m.current] + m.offset - p;
   }
+}
+
+void FeatureFrontEnd::medianMovesByCell() const {
+  Workspace& w = work_;
+  const int cols = settings_.grid_cols, rows = settings_.grid_rows;
   // Median displacement per cell: its own matches, else those of the 3 x 3 cells around it, else
   // all of them (a median per axis: robust to the wrong matches among them).
   const auto medianMove = [&](int c0x, int c1x, int c0y, int c1y) -> std::pair<bool, cv::Point2f> {
@@ -774,13 +825,13 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
       }
     }
     const size_t count = w.median_x.size();
-    if (count < kMinMoves) return {false, {}};
+    if (count < kMinTrackMoves) return {false, {}};
     // The upper median of an even count.
     return {true, cv::Point2f(static_cast<float>(passes::selectKth(w.median_x.data(), count, count / 2)),
                               static_cast<float>(passes::selectKth(w.median_y.data(), count, count / 2)))};
   };
   const cv::Point2f global_move = medianMove(0, cols - 1, 0, rows - 1).second;
-  w.cell_moves.resize(cells);
+  w.cell_moves.resize(cols * rows);
   for (int cy = 0; cy < rows; ++cy) {
     for (int cx = 0; cx < cols; ++cx) {
       auto own = medianMove(cx, cx, cy, cy);
@@ -788,12 +839,32 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
       w.cell_moves[cy * cols + cx] = own.first ? own.second : global_move;
     }
   }
+}
+
+void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat& current_gray,
+                                     const FrameFeatures& previous, const FrameFeatures& current,
+                                     const std::vector<FeatureMatch>& matches,
+                                     std::vector<TrackedCorner>* tracks) const {
+  checkSettings(settings_);
+  checkFeatures(previous, current, "trackUnmatched");
+  tracks->clear();
+  if (!settings_.track_unmatched || matches.size() < kMinTrackMoves) return;
+  checkImage(previous_gray, "trackUnmatched");
+  checkImage(current_gray, "trackUnmatched");
+  if (previous_gray.size() != current_gray.size()) {
+    throw std::invalid_argument("FeatureFrontEnd::trackUnmatched: the images differ in size");
+  }
+  Workspace& w = work_;
+  const cv::Size size = current_gray.size();
+  groupMovesByCell(previous, current, matches, size);
+  medianMovesByCell();
 
   const patch_alignment::TemplateKernel build_template = patch_alignment::templateKernel();
   const patch_alignment::CorrelationKernel correlate = patch_alignment::correlationKernel();
   const patch_alignment::MomentsKernel moments = patch_alignment::momentsKernel();
   patch_alignment::PatchTemplate patch;
   // Tracked in row order (cached rows), listed in corner order.
+  const size_t n_previous = previous.keypoints.size();
   w.track_found.assign(n_previous, 0);
   w.track_positions.resize(n_previous);
   orderByRow(n_previous, previous_gray.rows, [&](size_t k) { return pixelRow(previous.keypoints[k]); },
@@ -801,7 +872,7 @@ void FeatureFrontEnd::trackUnmatched(const cv::Mat& previous_gray, const cv::Mat
   for (const int i : w.row_order) {
     if (w.matched[i]) continue;
     const cv::Point2f p = previous.keypoints[i];
-    const cv::Point2f predicted = p + w.cell_moves[cellOf(p)];
+    const cv::Point2f predicted = p + w.cell_moves[trackCell(p, size, settings_.grid_cols, settings_.grid_rows)];
     // The whole pixel the search starts from: the prediction less the corner's own fraction, which
     // alignCorner adds back.
     const int qx = static_cast<int>(std::lround(predicted.x - (p.x - std::lround(p.x))));

@@ -113,6 +113,18 @@ std::string checkRatePlausible(const Eigen::Vector3d& rotation_vector, double dt
   return "";
 }
 
+const char* pairMatchingName(PairMatching matching) {
+  switch (matching) {
+    case PairMatching::kGuided: return "guided";
+    case PairMatching::kGlobal: return "global";
+    case PairMatching::kGlobalFallback: return "global_fallback";
+    case PairMatching::kNone: break;
+  }
+  return "";
+}
+
+std::ostream& operator<<(std::ostream& out, PairMatching matching) { return out << pairMatchingName(matching); }
+
 double matchFootprint(const CameraModel& camera) {
   return (2.0 * kBriefHalfPatch + 1.0) / std::min(camera.fx(), camera.fy());
 }
@@ -124,6 +136,7 @@ VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& sett
   checkCamera(camera);
   checkSettings(settings);
   estimator_ = createRotationEstimator(settings.estimator, warn);
+  backend_ = backendNamed(estimator_->backendName());
   estimator_->setRefinedPositions(settings.front_end.subpixel_refinement);
   estimator_->setMatchFootprint(matchFootprint(camera_));
 }
@@ -161,64 +174,99 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
   const auto start = std::chrono::steady_clock::now();
   FrameResult result;
   // Every early return before the front end leaves the state untouched.
-  auto reject = [&result](FrameStatus status, const std::string& why) {
-    result.status = status;
-    result.reason = why;
+  if (rejectImage(gray, &result) || rejectStamp(stamp, &result) || rejectContent(gray, stamp, &result)) {
     return result;
+  }
+  half_current_ready_ = false;
+  half_matched_ = false;
+  half_resolution_used_ = false;
+  if (!describeFrame(gray, stamp, &result)) return result;
+  if (!has_previous_) {
+    result.status = FrameStatus::kFirstFrame;
+    result.reason = "first frame: nothing to pair with yet";
+  } else if (!estimatePair(gray, stamp, &result)) {
+    return result;
+  }
+  result.times.total = elapsedMs(start);
+  keepAsPrevious(gray, stamp);
+  return result;
+}
+
+bool VisualGyro::rejectImage(const cv::Mat& gray, FrameResult* result) const {
+  auto reject = [result](const std::string& why) {
+    result->status = FrameStatus::kImageRejected;
+    result->reason = why;
+    return true;
   };
-  if (gray.empty()) return reject(FrameStatus::kImageRejected, "empty image");
+  if (gray.empty()) return reject("empty image");
   if (gray.type() != CV_8UC1) {
-    return reject(FrameStatus::kImageRejected,
-                  "image must be 8-bit single channel (CV_8UC1), got type " + std::to_string(gray.type()));
+    return reject("image must be 8-bit single channel (CV_8UC1), got type " + std::to_string(gray.type()));
   }
   if (gray.cols != camera_.width() || gray.rows != camera_.height()) {
-    return reject(FrameStatus::kImageRejected,
-                  "image is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
-                      " but the camera model is " + std::to_string(camera_.width()) + "x" +
-                      std::to_string(camera_.height()));
+    return reject("image is " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
+                  " but the camera model is " + std::to_string(camera_.width()) + "x" +
+                  std::to_string(camera_.height()));
   }
   if (gray.cols < kMinImageSide || gray.rows < kMinImageSide) {
-    return reject(FrameStatus::kImageRejected,
-                  "image " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
-                      " is smaller than the descriptor patch (at least " + std::to_string(kMinImageSide) +
-                      "x" + std::to_string(kMinImageSide) + " px)");
+    return reject("image " + std::to_string(gray.cols) + "x" + std::to_string(gray.rows) +
+                  " is smaller than the descriptor patch (at least " + std::to_string(kMinImageSide) + "x" +
+                  std::to_string(kMinImageSide) + " px)");
   }
-  if (!std::isfinite(stamp)) return reject(FrameStatus::kStampRejected, "stamp is not finite");
+  return false;
+}
+
+bool VisualGyro::rejectStamp(double stamp, FrameResult* result) const {
+  if (!std::isfinite(stamp)) {
+    result->status = FrameStatus::kStampRejected;
+    result->reason = "stamp is not finite";
+    return true;
+  }
   if (has_previous_ && !(stamp > previous_stamp_)) {
-    return reject(FrameStatus::kStampRejected, "stamp " + std::to_string(stamp) +
-                                                   " is not after the previous one (" +
-                                                   std::to_string(previous_stamp_) + ")");
+    result->status = FrameStatus::kStampRejected;
+    result->reason = "stamp " + std::to_string(stamp) + " is not after the previous one (" +
+                     std::to_string(previous_stamp_) + ")";
+    return true;
   }
   if (has_previous_ && stamp - previous_stamp_ < settings_.min_dt) {
-    result.dt = stamp - previous_stamp_;
-    return reject(FrameStatus::kTimeStepTooSmall, "time step " + formatNumber(result.dt) + " s below min_dt (" +
-                                                      formatNumber(settings_.min_dt) + " s): frame skipped");
+    result->dt = stamp - previous_stamp_;
+    result->status = FrameStatus::kTimeStepTooSmall;
+    result->reason = "time step " + formatNumber(result->dt) + " s below min_dt (" +
+                     formatNumber(settings_.min_dt) + " s): frame skipped";
+    return true;
   }
+  return false;
+}
+
+bool VisualGyro::rejectContent(const cv::Mat& gray, double stamp, FrameResult* result) const {
   // Checked before the frozen camera: a uniform image (lens cap, darkness, overexposure) is
   // identical to the next one too, though the camera is not what fails.
   cv::Scalar grey_mean, grey_stddev;
   cv::meanStdDev(gray, grey_mean, grey_stddev);
   if (grey_stddev[0] < kMinTextureStdDev) {
-    if (has_previous_) result.dt = stamp - previous_stamp_;
+    if (has_previous_) result->dt = stamp - previous_stamp_;
     std::ostringstream why;
     why.precision(3);
     why << "image has no texture (grey levels " << grey_mean[0] << " +- " << grey_stddev[0]
         << "): lens cap, darkness or overexposure?";
-    return reject(FrameStatus::kNoTexture, why.str());
+    result->status = FrameStatus::kNoTexture;
+    result->reason = why.str();
+    return true;
   }
   if (has_previous_ && bitIdentical(gray, previous_gray_)) {
     // A driver repeating its last frame with a new stamp would otherwise read as "no rotation"
     // while the camera may be turning. The previous image keeps its stamp: it is when that
     // content was captured.
-    result.dt = stamp - previous_stamp_;
-    return reject(FrameStatus::kFrozenImage, "image identical to the previous one (camera frozen?)");
+    result->dt = stamp - previous_stamp_;
+    result->status = FrameStatus::kFrozenImage;
+    result->reason = "image identical to the previous one (camera frozen?)";
+    return true;
   }
+  return false;
+}
 
-  FrameTimes& times = result.times;
+bool VisualGyro::describeFrame(const cv::Mat& gray, double stamp, FrameResult* result) {
+  FrameTimes& times = result->times;
   FrameFeatures& features = features_;
-  half_current_ready_ = false;
-  half_matched_ = false;
-  half_resolution_used_ = false;
   try {
     auto t0 = std::chrono::steady_clock::now();
     front_end_.detect(gray, &corners_);
@@ -227,85 +275,100 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     front_end_.describe(gray, corners_, &features);
     times.describe = elapsedMs(t0);
   } catch (const std::exception& e) {
-    return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
+    result->status = FrameStatus::kFrontEndFailed;
+    result->reason = std::string("front end failed: ") + e.what();
+    return false;
   }
-  result.features = static_cast<int>(features.keypoints.size());
+  result->features = static_cast<int>(features.keypoints.size());
   if (features.keypoints.empty()) {
     // Like a uniform image: nothing to pair with, so the previous image stays.
-    if (has_previous_) result.dt = stamp - previous_stamp_;
-    return reject(FrameStatus::kNoTexture, "image has no texture: no corner found");
+    if (has_previous_) result->dt = stamp - previous_stamp_;
+    result->status = FrameStatus::kNoTexture;
+    result->reason = "image has no texture: no corner found";
+    return false;
   }
   std::vector<Eigen::Vector3d>& bearings = bearings_;
   bearings.resize(features.keypoints.size());
   for (size_t i = 0; i < bearings.size(); ++i)
     bearings[i] = camera_.bearing(features.keypoints[i].x, features.keypoints[i].y);
+  return true;
+}
 
-  if (!has_previous_) {
-    result.status = FrameStatus::kFirstFrame;
-    result.reason = "first frame: nothing to pair with yet";
-  } else {
-    const double dt = stamp - previous_stamp_;
-    result.dt = dt;
-    const RotationPrior prior = prior_.priorFor(dt);
-    auto t0 = std::chrono::steady_clock::now();
-    try {
-      matchFrames(prior);
-      times.match = elapsedMs(t0);
-      t0 = std::chrono::steady_clock::now();
-      front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
-      front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
-      times.align = elapsedMs(t0);
-      matchHalfResolution(gray, &times);
-    } catch (const std::exception& e) {
-      // Before any state changed: the frame is rejected, the previous one stays.
-      return reject(FrameStatus::kFrontEndFailed, std::string("front end failed: ") + e.what());
-    }
-    collectMatches(&result);
-    if (settings_.run_estimator) {
-      result.rotation = estimateAtBestResolution(prior, &result);
-      if (!result.rotation.valid() && matching_ == "guided") {
-        // Guided matches that give no estimate: the prior may have sent the search to the wrong
-        // place (plenty of chance matches there, few consistent). Global matching does not
-        // depend on it; its estimate replaces the guided one, and both estimates' times count.
-        const EstimateTimes guided_times = result.rotation.times;
-        t0 = std::chrono::steady_clock::now();
-        front_end_.match(previous_features_, features_, &matches_);
-        times.match += elapsedMs(t0);
-        t0 = std::chrono::steady_clock::now();
-        front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
-        front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
-        times.align += elapsedMs(t0);
-        matchHalfResolution(gray, &times);
-        matching_ = "global_fallback";
-        collectMatches(&result);
-        result.rotation = estimateAtBestResolution(prior, &result);
-        result.rotation.times += guided_times;
-      }
-      if (result.rotation.valid()) {
-        const std::string implausible = checkRatePlausible(result.rotation.rotation_vector, dt, settings_);
-        if (!implausible.empty()) result.rotation.invalidate(FrameStatus::kImplausibleRate, implausible);
-      }
-      // An implausible rotation is no prior for the next frame either.
-      prior_.update(result.rotation, dt);
-      updatePriorUncertainty(prior, result.rotation);
-      updateSearchParallax(result);
-      checkCalibrationFit(&result);
-      result.status = result.rotation.status;
-      result.reason = result.rotation.reason;
-      if (result.hasEstimate()) {
-        result.angular_velocity = result.rotation.rotation_vector / dt;
-        result.angular_velocity_covariance = result.rotation.covariance / (dt * dt);
-      }
-      times.estimate = result.rotation.times.estimate;
-    } else {
-      result.status = FrameStatus::kNotEstimated;
-      result.reason = "run_estimator is off: matches only";
-    }
-    result.matching = half_resolution_used_ ? "global" : matching_;
-    result.half_resolution = half_resolution_used_;
+bool VisualGyro::estimatePair(const cv::Mat& gray, double stamp, FrameResult* result) {
+  const double dt = stamp - previous_stamp_;
+  result->dt = dt;
+  const RotationPrior prior = prior_.priorFor(dt);
+  FrameTimes& times = result->times;
+  try {
+    const auto t0 = std::chrono::steady_clock::now();
+    matchFrames(prior);
+    times.match += elapsedMs(t0);
+    alignMatches(gray, &times);
+    matchHalfResolution(gray, &times);
+  } catch (const std::exception& e) {
+    // Before any state changed: the frame is rejected, the previous one stays.
+    result->status = FrameStatus::kFrontEndFailed;
+    result->reason = std::string("front end failed: ") + e.what();
+    return false;
   }
-  times.total = elapsedMs(start);
+  collectMatches(result);
+  if (settings_.run_estimator) {
+    estimateRotation(gray, prior, dt, result);
+  } else {
+    result->status = FrameStatus::kNotEstimated;
+    result->reason = "run_estimator is off: matches only";
+  }
+  result->matching = half_resolution_used_ ? PairMatching::kGlobal : matching_;
+  result->half_resolution = half_resolution_used_;
+  return true;
+}
 
+void VisualGyro::alignMatches(const cv::Mat& gray, FrameTimes* times) {
+  const auto t0 = std::chrono::steady_clock::now();
+  front_end_.refineMatches(previous_gray_, gray, previous_features_, features_, &matches_);
+  front_end_.trackUnmatched(previous_gray_, gray, previous_features_, features_, matches_, &tracks_);
+  times->align += elapsedMs(t0);
+}
+
+void VisualGyro::estimateRotation(const cv::Mat& gray, const RotationPrior& prior, double dt,
+                                  FrameResult* result) {
+  result->rotation = estimateAtBestResolution(prior, result);
+  if (!result->rotation.valid() && matching_ == PairMatching::kGuided) fallBackToGlobal(gray, prior, result);
+  if (result->rotation.valid()) {
+    const std::string implausible = checkRatePlausible(result->rotation.rotation_vector, dt, settings_);
+    if (!implausible.empty()) result->rotation.invalidate(FrameStatus::kImplausibleRate, implausible);
+  }
+  // An implausible rotation is no prior for the next frame either.
+  prior_.update(result->rotation, dt);
+  updatePriorUncertainty(prior, result->rotation);
+  updateSearchParallax(*result);
+  checkCalibrationFit(result);
+  result->status = result->rotation.status;
+  result->reason = result->rotation.reason;
+  if (result->hasEstimate()) {
+    result->angular_velocity = result->rotation.rotation_vector / dt;
+    result->angular_velocity_covariance = result->rotation.covariance / (dt * dt);
+  }
+  result->times.estimate = result->rotation.times.estimate;
+}
+
+void VisualGyro::fallBackToGlobal(const cv::Mat& gray, const RotationPrior& prior, FrameResult* result) {
+  // Guided matches that give no estimate: the prior may have sent the search to the wrong
+  // place (plenty of chance matches there, few consistent). Global matching does not
+  // depend on it; its estimate replaces the guided one, and both estimates' times count.
+  const EstimateTimes guided_times = result->rotation.times;
+  const auto t0 = std::chrono::steady_clock::now();
+  front_end_.match(previous_features_, features_, &matches_);
+  result->times.match += elapsedMs(t0);
+  alignMatches(gray, &result->times);
+  matchHalfResolution(gray, &result->times);
+  matching_ = PairMatching::kGlobalFallback;
+  collectMatches(result);
+  result->rotation = estimateAtBestResolution(prior, result);
+  result->rotation.times += guided_times;
+}
+
+void VisualGyro::keepAsPrevious(const cv::Mat& gray, double stamp) {
   has_previous_ = true;
   previous_stamp_ = stamp;
   gray.copyTo(previous_gray_);
@@ -317,7 +380,6 @@ FrameResult VisualGyro::processFrame(const cv::Mat& gray, double stamp) {
     std::swap(half_previous_gray_, half_gray_);
     std::swap(half_previous_features_, half_features_);
   }
-  return result;
 }
 
 void VisualGyro::collectMatches(FrameResult* result) const {
@@ -448,19 +510,19 @@ void VisualGyro::matchFrames(const RotationPrior& prior) {
   const FrontEndSettings& s = settings_.front_end;
   if (s.matching != MatchingMode::kGuided || !prior.valid) {
     front_end_.match(previous_features_, features_, &matches_);
-    matching_ = "global";
+    matching_ = PairMatching::kGlobal;
     return;
   }
   const Eigen::Matrix3d rotation = so3Exp(prior.rotation_vector);
   front_end_.predict(camera_, rotation, prior_uncertainty_rad_ + search_parallax_rad_,
                      previous_keypoint_bearings_, &prediction_);
   front_end_.matchGuided(previous_features_, features_, prediction_, &matches_);
-  matching_ = "guided";
+  matching_ = PairMatching::kGuided;
   // Too few: the prior is probably wrong (a jolt, a bad last estimate); global matching does not
   // depend on it.
   if (static_cast<int>(matches_.size()) < s.guided_min_matches) {
     front_end_.match(previous_features_, features_, &matches_);
-    matching_ = "global_fallback";
+    matching_ = PairMatching::kGlobalFallback;
   }
 }
 

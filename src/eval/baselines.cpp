@@ -24,8 +24,9 @@ namespace {
 const char* const kOpenCvNames[] = {"essential5", "fundamental8"};
 const char* const kOpenGvNames[] = {"opengv_rotation_only", "opengv_eigensolver", "opengv_5pt"};
 
-BaselineResult invalid(const std::string& why) {
+BaselineResult invalid(FrameStatus status, const std::string& why) {
   BaselineResult result;
+  result.status = status;
   result.error = why;
   return result;
 }
@@ -58,7 +59,7 @@ BaselineResult poseFromEssential(const cv::Mat& essential, const std::vector<cv:
                                  const std::vector<cv::Point2d>& p_cur, cv::Mat mask,
                                  const BaselineSettings& settings) {
   if (essential.empty() || essential.cols != 3 || essential.rows < 3) {
-    return invalid("no essential matrix found");
+    return invalid(FrameStatus::kDegenerate, "no essential matrix found");
   }
   // With exactly five points OpenCV stacks several solutions; the first one is as good as any.
   cv::Mat e = essential.rowRange(0, 3).clone();
@@ -69,14 +70,15 @@ BaselineResult poseFromEssential(const cv::Mat& essential, const std::vector<cv:
   cv::Mat points;
   const int inliers = cv::recoverPose(e, p_prev, p_cur, cv::Mat::eye(3, 3, CV_64F), r_cv, t_cv, 1e6, mask, points);
   if (inliers < settings.min_inliers) {
-    return invalid("recoverPose kept " + std::to_string(inliers) + " inliers (< " +
-                   std::to_string(settings.min_inliers) + ")");
+    return invalid(FrameStatus::kTooFewInliers, "recoverPose kept " + std::to_string(inliers) + " inliers (< " +
+                                                    std::to_string(settings.min_inliers) + ")");
   }
   Eigen::Matrix3d r;
   cv::cv2eigen(r_cv, r);
-  if (!finiteRotation(r)) return invalid("recoverPose returned no rotation");
+  if (!finiteRotation(r)) return invalid(FrameStatus::kDegenerate, "recoverPose returned no rotation");
   BaselineResult result;
   result.valid = true;
+  result.status = FrameStatus::kValid;
   result.rotation = r.transpose();
   result.inliers = inliers;
   return result;
@@ -88,7 +90,8 @@ BaselineResult runEssential5(const std::vector<Eigen::Vector3d>& previous,
   std::vector<cv::Point2d> p_prev, p_cur;
   normalizedPoints(previous, current, &p_prev, &p_cur);
   if (p_prev.size() < 5 || static_cast<int>(p_prev.size()) < settings.min_inliers) {
-    return invalid("too few matches for the 5-point method: " + std::to_string(p_prev.size()));
+    return invalid(FrameStatus::kTooFewMatches,
+                   "too few matches for the 5-point method: " + std::to_string(p_prev.size()));
   }
   cv::Mat mask;
   cv::Mat essential = cv::findEssentialMat(p_prev, p_cur, 1.0, cv::Point2d(0, 0), cv::RANSAC,
@@ -102,18 +105,21 @@ BaselineResult runFundamental8(const std::vector<Eigen::Vector3d>& previous,
   std::vector<cv::Point2d> p_prev, p_cur;
   normalizedPoints(previous, current, &p_prev, &p_cur);
   if (p_prev.size() < 8 || static_cast<int>(p_prev.size()) < settings.min_inliers) {
-    return invalid("too few matches for the 8-point method: " + std::to_string(p_prev.size()));
+    return invalid(FrameStatus::kTooFewMatches,
+                   "too few matches for the 8-point method: " + std::to_string(p_prev.size()));
   }
   cv::Mat mask;
   cv::Mat fundamental = cv::findFundamentalMat(p_prev, p_cur, cv::FM_RANSAC, settings.threshold_rad,
                                                settings.confidence, mask);
-  if (fundamental.empty() || fundamental.rows < 3) return invalid("no fundamental matrix found");
+  if (fundamental.empty() || fundamental.rows < 3) {
+    return invalid(FrameStatus::kDegenerate, "no fundamental matrix found");
+  }
   // K = I, so E = F up to scale; project onto the essential manifold (two equal singular values,
   // one zero) before decomposing it.
   cv::Mat f = fundamental.rowRange(0, 3).clone();
   cv::SVD svd(f, cv::SVD::FULL_UV);
   const double s = 0.5 * (svd.w.at<double>(0) + svd.w.at<double>(1));
-  if (!(s > 0.0)) return invalid("degenerate fundamental matrix");
+  if (!(s > 0.0)) return invalid(FrameStatus::kDegenerate, "degenerate fundamental matrix");
   cv::Mat w = (cv::Mat_<double>(3, 3) << 1, 0, 0, 0, 1, 0, 0, 0, 0);
   cv::Mat essential = svd.u * w * svd.vt;
   return poseFromEssential(essential, p_prev, p_cur, mask, settings);
@@ -138,19 +144,20 @@ BaselineResult runOpenGvRansac(const std::shared_ptr<Problem>& problem, double t
   ransac.threshold_ = threshold;
   ransac.max_iterations_ = settings.max_iterations;
   ransac.probability_ = settings.confidence;
-  if (!ransac.computeModel(0)) return invalid("OpenGV RANSAC found no model");
+  if (!ransac.computeModel(0)) return invalid(FrameStatus::kDegenerate, "OpenGV RANSAC found no model");
   const int inliers = static_cast<int>(ransac.inliers_.size());
   if (inliers < settings.min_inliers) {
-    return invalid("OpenGV RANSAC kept " + std::to_string(inliers) + " inliers (< " +
-                   std::to_string(settings.min_inliers) + ")");
+    return invalid(FrameStatus::kTooFewInliers, "OpenGV RANSAC kept " + std::to_string(inliers) + " inliers (< " +
+                                                    std::to_string(settings.min_inliers) + ")");
   }
   typename Problem::model_t refined;
   problem->optimizeModelCoefficients(ransac.inliers_, ransac.model_coefficients_, refined);
   Eigen::Matrix3d r = rotationOf(refined);
   if (!finiteRotation(r)) r = rotationOf(ransac.model_coefficients_);
-  if (!finiteRotation(r)) return invalid("OpenGV returned no rotation");
+  if (!finiteRotation(r)) return invalid(FrameStatus::kDegenerate, "OpenGV returned no rotation");
   BaselineResult result;
   result.valid = true;
+  result.status = FrameStatus::kValid;
   result.rotation = r;  // R12 maps frame-2 (current) bearings into frame 1 (previous): ours
   result.inliers = inliers;
   return result;
@@ -164,14 +171,14 @@ BaselineResult runOpenGv(const std::string& name, const std::vector<Eigen::Vecto
                          const std::vector<Eigen::Vector3d>& current,
                          const BaselineSettings& settings, const Eigen::Matrix3d& initial) {
   const size_t min_needed = name == "opengv_rotation_only" ? 3 : (name == "opengv_eigensolver" ? 10 : 5);
-  if (previous.size() != current.size()) return invalid("match lists differ in length");
+  if (previous.size() != current.size()) return invalid(FrameStatus::kBadBearings, "match lists differ in length");
   if (previous.size() < min_needed || static_cast<int>(previous.size()) < settings.min_inliers) {
-    return invalid("too few matches for " + name + ": " + std::to_string(previous.size()));
+    return invalid(FrameStatus::kTooFewMatches, "too few matches for " + name + ": " + std::to_string(previous.size()));
   }
   for (size_t i = 0; i < previous.size(); ++i) {
     if (!previous[i].allFinite() || !current[i].allFinite() || previous[i].norm() < 1e-9 ||
         current[i].norm() < 1e-9) {
-      return invalid("non-finite or zero bearing in the matches");
+      return invalid(FrameStatus::kBadBearings, "non-finite or zero bearing in the matches");
     }
   }
   opengv::bearingVectors_t b_prev, b_cur;
@@ -230,7 +237,7 @@ BaselineResult runBaseline(const std::string& name, const std::vector<Eigen::Vec
                                     ? "baseline '" + name + "' needs OpenGV, not compiled into this build"
                                     : "unknown baseline '" + name + "'");
   }
-  if (previous.size() != current.size()) return invalid("match lists differ in length");
+  if (previous.size() != current.size()) return invalid(FrameStatus::kBadBearings, "match lists differ in length");
   try {
     if (name == "essential5") return runEssential5(previous, current, settings);
     if (name == "fundamental8") return runFundamental8(previous, current, settings);
@@ -240,11 +247,11 @@ BaselineResult runBaseline(const std::string& name, const std::vector<Eigen::Vec
     (void)initial;
 #endif
   } catch (const cv::Exception& e) {
-    return invalid(std::string("OpenCV: ") + e.what());
+    return invalid(FrameStatus::kEstimatorFailed, std::string("OpenCV: ") + e.what());
   } catch (const std::exception& e) {
-    return invalid(name + ": " + e.what());
+    return invalid(FrameStatus::kEstimatorFailed, name + ": " + e.what());
   }
-  return invalid("unreachable");
+  return invalid(FrameStatus::kEstimatorFailed, "unreachable");
 }
 
 }  // namespace eval

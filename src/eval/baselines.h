@@ -11,13 +11,19 @@
 #include <string>
 #include <vector>
 
+#include "visual_gyro/frame_status.h"
+
 namespace visual_gyro {
 namespace eval {
 
 /// Result of one baseline estimate.
 struct BaselineResult {
   bool valid = false;   ///< false: no usable model (see error); rotation is then identity
-  std::string error;    ///< why not valid
+  /// kValid when valid; else the nearest frame status: kBadBearings (lists of unequal length,
+  /// unusable bearings), kTooFewMatches, kDegenerate (no model, or no rotation from it),
+  /// kTooFewInliers (fewer than min_inliers), kEstimatorFailed (the library threw).
+  FrameStatus status = FrameStatus::kNotEstimated;
+  std::string error;    ///< why not valid, for people
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< b_prev ~ R b_cur
   int inliers = 0;      ///< inliers of the final model
 };

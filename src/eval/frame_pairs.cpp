@@ -105,6 +105,92 @@ void subsampleMatches(int max_matches, uint64_t seed, FramePair* p) {
   p->current.swap(b);
 }
 
+namespace {
+
+/// Image k of the sequence as the front end sees it: read (DataError when it cannot be), then
+/// degraded as the options say.
+cv::Mat readPairImage(const Sequence& seq, size_t k, const FramePairOptions& o) {
+  cv::Mat gray;
+  try {
+    gray = readImage(seq, k);
+  } catch (const std::exception& e) {
+    throw DataError(e.what());
+  }
+  // Degraded at the resolution the front end sees, as a camera of that resolution would be.
+  if (o.degradation.any()) gray = degradeImage(gray, o.degradation, o.seed * 0x9E3779B97F4A7C15ull + k);
+  return gray;
+}
+
+/// Image k (`gray`) through the comparison front end `other`: when it paired the image with the
+/// previous one (image previous_index), the pairs' bearings, dt and stage times.
+/// `previous_pixels` and `current_pixels` are working space. DataError for an image that is not
+/// the camera's size.
+FrameResult comparisonFrame(ComparisonFrontEnd* other, const Sequence& seq, size_t k, size_t previous_index, const cv::Mat& gray, std::vector<cv::Point2f>* previous_pixels,
+                            std::vector<cv::Point2f>* current_pixels) {
+  FrameResult r;
+  if (gray.cols != seq.camera.width() || gray.rows != seq.camera.height()) {
+    throw DataError("image " + seq.image_paths[k] + " is " + std::to_string(gray.cols) + "x" +
+                    std::to_string(gray.rows) + " but the camera model is " +
+                    std::to_string(seq.camera.width()) + "x" + std::to_string(seq.camera.height()));
+  }
+  const bool paired = other->process(gray, previous_pixels, current_pixels, &r.times);
+  if (paired) {
+    r.dt = seq.stamps[k] - seq.stamps[previous_index];
+    for (size_t i = 0; i < previous_pixels->size(); ++i) {
+      r.previous_bearings.push_back(seq.camera.bearing((*previous_pixels)[i].x, (*previous_pixels)[i].y));
+      r.current_bearings.push_back(seq.camera.bearing((*current_pixels)[i].x, (*current_pixels)[i].y));
+    }
+  }
+  return r;
+}
+
+/// The pair (previous_index, k) from the front end's result `r` (its bearings are moved out),
+/// with its truth, subsampled and with outliers injected as the options say. `unusable`: the
+/// image left the previous one in place (frozen or textureless).
+FramePair makePair(const Sequence& seq, size_t previous_index, size_t k, bool unusable, const FramePairOptions& o,
+                   FrameResult* r) {
+  FramePair p;
+  p.previous_index = previous_index;
+  p.index = k;
+  p.dt = r->dt > 0.0 ? r->dt : seq.stamps[k] - seq.stamps[previous_index];
+  p.previous = std::move(r->previous_bearings);
+  p.current = std::move(r->current_bearings);
+  p.front_end = r->times;
+  if (unusable) {
+    p.image_status = r->status;
+    p.unusable_image = std::string(frameStatusName(r->status)) + ": " + r->reason;
+  }
+  p.matching = r->matching;
+  p.tracked = r->tracked;
+  p.half_resolution = r->half_resolution;
+  fillPairTruth(seq, &p);
+  subsampleMatches(o.max_matches, o.seed, &p);
+  injectOutliers(o.outliers, o.seed, 1.0 / seq.camera.fx(), &p);
+  return p;
+}
+
+/// Reports the frames skipped for a time step below min_dt (DataError when no pair is left) and,
+/// unless quiet, the pair count.
+void reportPairs(const Sequence& seq, const VisualGyroSettings& settings, const FramePairOptions& o,
+                 const std::vector<FramePair>& pairs, size_t skipped_min_dt, const std::string& first_skip) {
+  if (skipped_min_dt > 0) {
+    std::fprintf(stderr, "[evaluate] %s: %zu frame(s) skipped, time step below min_dt %g s (first: %s)\n",
+                 seq.name.c_str(), skipped_min_dt, settings.min_dt, first_skip.c_str());
+    if (pairs.empty()) {
+      throw DataError(seq.name + ": no usable frame pairs: every time step is below min_dt (" +
+                      std::to_string(skipped_min_dt) + " frames skipped; first: " + first_skip + ")");
+    }
+  }
+  if (!o.quiet && !pairs.empty()) {
+    double matches = 0;
+    for (const FramePair& p : pairs) matches += p.previous.size();
+    std::fprintf(stderr, "[evaluate] %s: %zu frame pairs, %.1f matches per pair\n", seq.name.c_str(), pairs.size(),
+                 matches / pairs.size());
+  }
+}
+
+}  // namespace
+
 std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSettings& settings,
                                          const FramePairOptions& o) {
   VisualGyroSettings front_end_only = settings;
@@ -116,7 +202,6 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
   if (o.front_end != "native") other = makeComparisonFrontEnd(o.front_end);
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<FramePair> pairs;
-  const double angle_per_px = 1.0 / seq.camera.fx();
   bool have_previous = false;
   size_t previous_index = 0;
   size_t skipped_min_dt = 0;
@@ -125,30 +210,10 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
   const bool progress = !o.quiet && isatty(fileno(stderr));
   for (size_t k = 0; k < seq.image_paths.size(); k += o.stride) {
     if (o.frames > 0 && static_cast<long long>(pairs.size()) >= o.frames) break;
-    cv::Mat gray;
-    try {
-      gray = readImage(seq, k);
-    } catch (const std::exception& e) {
-      throw DataError(e.what());
-    }
-    // Degraded at the resolution the front end sees, as a camera of that resolution would be.
-    if (o.degradation.any()) gray = degradeImage(gray, o.degradation, o.seed * 0x9E3779B97F4A7C15ull + k);
+    const cv::Mat gray = readPairImage(seq, k, o);
     FrameResult r;
     if (other) {
-      if (gray.cols != seq.camera.width() || gray.rows != seq.camera.height()) {
-        throw DataError("image " + seq.image_paths[k] + " is " + std::to_string(gray.cols) + "x" +
-                        std::to_string(gray.rows) + " but the camera model is " +
-                        std::to_string(seq.camera.width()) + "x" + std::to_string(seq.camera.height()));
-      }
-      const bool paired = other->process(gray, &previous_pixels, &current_pixels, &r.times);
-      if (paired) {
-        r.dt = seq.stamps[k] - seq.stamps[previous_index];
-        r.matching = o.front_end;
-        for (size_t i = 0; i < previous_pixels.size(); ++i) {
-          r.previous_bearings.push_back(seq.camera.bearing(previous_pixels[i].x, previous_pixels[i].y));
-          r.current_bearings.push_back(seq.camera.bearing(current_pixels[i].x, current_pixels[i].y));
-        }
-      }
+      r = comparisonFrame(other.get(), seq, k, previous_index, gray, &previous_pixels, &current_pixels);
     } else {
       r = gyro.processFrame(gray, seq.stamps[k]);
       if (r.status == FrameStatus::kTimeStepTooSmall) {
@@ -169,20 +234,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
       previous_index = k;
       continue;
     }
-    FramePair p;
-    p.previous_index = previous_index;
-    p.index = k;
-    p.dt = r.dt > 0.0 ? r.dt : seq.stamps[k] - seq.stamps[previous_index];
-    p.previous = std::move(r.previous_bearings);
-    p.current = std::move(r.current_bearings);
-    p.front_end = r.times;
-    if (unusable) p.unusable_image = std::string(frameStatusName(r.status)) + ": " + r.reason;
-    p.matching = r.matching;
-    p.tracked = r.tracked;
-    p.half_resolution = r.half_resolution;
-    fillPairTruth(seq, &p);
-    subsampleMatches(o.max_matches, o.seed, &p);
-    injectOutliers(o.outliers, o.seed, angle_per_px, &p);
+    FramePair p = makePair(seq, previous_index, k, unusable, o, &r);
     if (progress) {
       std::fprintf(stderr, "\r[evaluate] front end: pair %zu (images %zu-%zu), %zu matches   ",
                    pairs.size() + 1, previous_index, k, p.previous.size());
@@ -191,20 +243,7 @@ std::vector<FramePair> collectFramePairs(const Sequence& seq, const VisualGyroSe
     if (!unusable) previous_index = k;
   }
   if (progress) std::fprintf(stderr, "\n");
-  if (skipped_min_dt > 0) {
-    std::fprintf(stderr, "[evaluate] %s: %zu frame(s) skipped, time step below min_dt %g s (first: %s)\n",
-                 seq.name.c_str(), skipped_min_dt, settings.min_dt, first_skip.c_str());
-    if (pairs.empty()) {
-      throw DataError(seq.name + ": no usable frame pairs: every time step is below min_dt (" +
-                      std::to_string(skipped_min_dt) + " frames skipped; first: " + first_skip + ")");
-    }
-  }
-  if (!o.quiet && !pairs.empty()) {
-    double matches = 0;
-    for (const FramePair& p : pairs) matches += p.previous.size();
-    std::fprintf(stderr, "[evaluate] %s: %zu frame pairs, %.1f matches per pair\n", seq.name.c_str(), pairs.size(),
-                 matches / pairs.size());
-  }
+  reportPairs(seq, settings, o, pairs, skipped_min_dt, first_skip);
   return pairs;
 }
 

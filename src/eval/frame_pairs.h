@@ -30,12 +30,14 @@ struct FramePair {
   double dt = 0.0;            ///< [s]
   std::vector<Eigen::Vector3d> previous, current;  ///< matched bearings (after max_matches/outliers)
   FrameTimes front_end;       ///< detect, describe, match of the current frame [ms]
-  std::string matching;       ///< native front end: guided, global or global_fallback
+  /// Native front end: how the pair was matched (FrameResult::matching); kNone for the others.
+  PairMatching matching = PairMatching::kNone;
   int tracked = 0;            ///< native front end: pairs that are tracked corners (before subsampling)
   bool half_resolution = false;  ///< native front end: matched at half resolution (FrameResult)
-  /// Why the current image gave no matches and left the previous one in place, as
-  /// "<frame status>: <reason>": bit-identical to the previous image (frozen_image) or without
-  /// texture (no_texture); "" for a usable image.
+  /// kFrozenImage (bit-identical to the previous image) or kNoTexture when the current image gave
+  /// no matches and left the previous one in place; kValid for a usable image.
+  FrameStatus image_status = FrameStatus::kValid;
+  /// Why the image was unusable, for people, as "<frame status>: <reason>"; "" for a usable image.
   std::string unusable_image;
   metrics::FrameTruth truth;  ///< the pair's reference
   double true_translation = std::numeric_limits<double>::quiet_NaN();  ///< camera displacement [m] (poses)

@@ -88,8 +88,8 @@ MethodSummary runMethod(const std::string& method, MethodRunner* runner, const s
     s.refine += e.refine_ms;
     s.matches_mean += row.matches;
     s.tracked_mean += p.tracked;
-    if (p.matching == "guided") ++s.guided_pairs;
-    if (p.matching == "global_fallback") ++s.fallback_pairs;
+    if (p.matching == PairMatching::kGuided) ++s.guided_pairs;
+    if (p.matching == PairMatching::kGlobalFallback) ++s.fallback_pairs;
     if (p.half_resolution) ++s.half_resolution_pairs;
     s.rows.push_back(row);
   }
@@ -165,7 +165,7 @@ ImuAlignment alignGyroTruth(const Sequence& seq, size_t reference, std::vector<F
 std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   const metrics::AccuracySummary& a = s.accuracy;
   std::ostringstream out;
-  out << "== " << s.method << " on " << run.dataset << " (" << run.layout << ", backend " << s.backend << ")\n";
+  out << "== " << s.method << " on " << run.dataset << " (" << run.layout << ", backend " << backendName(s.backend) << ")\n";
   out << "   frames " << a.frames << ", invalid " << a.invalid
       << " (invalid frames count as identity rotation in the errors)";
   if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
@@ -201,9 +201,9 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
     out << "   covariance      NEES mean " << fmt(a.nees_mean, 2) << " (3 when honest), beyond 99 % bound "
         << fmt(100.0 * a.nees_beyond99, 1) << " % of valid frames\n";
   out << "   matches         mean " << fmt(s.matches_mean, 1) << " (front end " << s.front_end;
-  if (!s.matching.empty()) {
-    out << ", matching " << s.matching;
-    if (s.matching == "guided")
+  if (s.matching) {
+    out << ", matching " << matchingModeName(*s.matching);
+    if (*s.matching == MatchingMode::kGuided)
       out << ": " << s.guided_pairs << " pairs guided, " << s.fallback_pairs << " fell back to global";
   }
   if (s.tracked_mean > 0.0) out << "; " << fmt(s.tracked_mean, 1) << " of them tracked";
@@ -236,11 +236,11 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
   j.add("dataset", run.dataset).add("method", s.method);
   metrics::addAccuracyFields(a, &j);
   j.add("ms_per_frame", times)
-      .add("backend", s.backend)
+      .add("backend", backendName(s.backend))
       .add("matches_mean", s.matches_mean)
       .add("tracked_mean", s.tracked_mean)
       .add("front_end", s.front_end)
-      .add("matching", s.matching)
+      .add("matching", s.matching ? matchingModeName(*s.matching) : "")
       .add("guided_pairs", s.guided_pairs)
       .add("fallback_pairs", s.fallback_pairs)
       .add("half_resolution_pairs", s.half_resolution_pairs)

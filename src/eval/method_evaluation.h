@@ -3,6 +3,7 @@
 #pragma once
 
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,7 +37,8 @@ struct FrameRow {
 
 /// One method over all pairs.
 struct MethodSummary {
-  std::string method, backend;
+  std::string method;
+  Backend backend = Backend::kCpu;
   std::vector<FrameRow> rows;
   metrics::AccuracySummary accuracy;
   double detect = 0, describe = 0, match = 0, align = 0, estimate = 0, total = 0;  ///< mean ms per frame
@@ -45,7 +47,8 @@ struct MethodSummary {
   double true_translation_mean = std::numeric_limits<double>::quiet_NaN();  ///< [m] (poses)
   std::string first_error;
   std::string front_end;  ///< native, orb or klt
-  std::string matching;   ///< native: the matching setting (guided, global); else ""
+  /// Native front end: the matching setting; empty for a comparison front end.
+  std::optional<MatchingMode> matching;
   double tracked_mean = 0;  ///< native: tracked corners per pair (FrontEndSettings::track_unmatched)
   int guided_pairs = 0;   ///< native: pairs matched guided by the prior
   int fallback_pairs = 0;  ///< native: pairs where guided matching fell back to global

@@ -23,7 +23,8 @@ class OwnEstimatorRunner : public MethodRunner {
                      uint32_t disabled_parts)
       : estimator_(createRotationEstimator(settings, [](const std::string& w) {
           std::cerr << "warning: " << w << "\n";
-        })) {
+        })),
+        backend_(backendNamed(estimator_->backendName())) {
     estimator_->setDisabledParts(disabled_parts);
     estimator_->setRefinedPositions(refined_positions);
     estimator_->setMatchFootprint(match_footprint);
@@ -36,10 +37,11 @@ class OwnEstimatorRunner : public MethodRunner {
     MethodEstimate out;
     out.estimate_ms = elapsedMs(start);
     out.vote_ms = r.times.vote;
-    out.vote_device_ms = r.backend == "cuda" ? r.times.vote_device : std::numeric_limits<double>::quiet_NaN();
+    out.vote_device_ms = backend_ == Backend::kCuda ? r.times.vote_device : std::numeric_limits<double>::quiet_NaN();
     out.refine_ms = r.times.refine;
     prior_.update(r, pair.dt);
     out.valid = r.valid();
+    out.status = r.status;
     if (!out.valid) out.error = std::string(frameStatusName(r.status)) + ": " + r.reason;
     out.inliers = r.inliers;
     out.pure_rotation = r.pure_rotation;
@@ -53,10 +55,11 @@ class OwnEstimatorRunner : public MethodRunner {
     }
     return out;
   }
-  std::string backend() const override { return estimator_->backendName(); }
+  Backend backend() const override { return backend_; }
 
  private:
   std::unique_ptr<RotationEstimator> estimator_;
+  Backend backend_;  // estimator_'s voter, fixed at its creation
   PriorTracker prior_;  // the same prior VisualGyro gives its estimator
 };
 
@@ -73,6 +76,7 @@ class BaselineRunner : public MethodRunner {
     MethodEstimate out;
     out.estimate_ms = elapsedMs(start);
     out.valid = r.valid;
+    out.status = r.status;
     out.error = r.error;
     if (r.valid) {
       out.rotation = r.rotation;
@@ -83,7 +87,7 @@ class BaselineRunner : public MethodRunner {
     }
     return out;
   }
-  std::string backend() const override { return "cpu"; }
+  Backend backend() const override { return Backend::kCpu; }
 
  private:
   std::string name_;
@@ -104,8 +108,9 @@ class PlausibilityRunner : public MethodRunner {
         pixel_angle_rad_(pixel_angle_rad) {}
 
   MethodEstimate run(const FramePair& pair) override {
-    if (!pair.unusable_image.empty()) {
+    if (pair.image_status != FrameStatus::kValid) {
       MethodEstimate out;
+      out.status = pair.image_status;
       out.error = pair.unusable_image;
       return out;
     }
@@ -114,7 +119,8 @@ class PlausibilityRunner : public MethodRunner {
       const std::string implausible = checkRatePlausible(out.rotation_vector, pair.dt, settings_);
       if (!implausible.empty()) {
         out.valid = false;
-        out.error = std::string(frameStatusName(FrameStatus::kImplausibleRate)) + ": " + implausible;
+        out.status = FrameStatus::kImplausibleRate;
+        out.error = std::string(frameStatusName(out.status)) + ": " + implausible;
         out.rotation.setIdentity();
         out.rotation_vector.setZero();
       }
@@ -122,7 +128,7 @@ class PlausibilityRunner : public MethodRunner {
     if (out.valid && judge_calibration_) judgeCalibration(pair, &out);
     return out;
   }
-  std::string backend() const override { return inner_->backend(); }
+  Backend backend() const override { return inner_->backend(); }
 
  private:
   /// VisualGyro::checkCalibrationFit on the pair's bearings.
@@ -133,7 +139,8 @@ class PlausibilityRunner : public MethodRunner {
     fit_.add(out->residual_correlation);
     if (!fit_.mismatch()) return;
     out->valid = false;
-    out->error = std::string(frameStatusName(FrameStatus::kCalibrationMismatch)) + ": " + fit_.describe();
+    out->status = FrameStatus::kCalibrationMismatch;
+    out->error = std::string(frameStatusName(out->status)) + ": " + fit_.describe();
     out->rotation.setIdentity();
     out->rotation_vector.setZero();
     out->translation.setZero();

@@ -11,6 +11,7 @@
 
 #include "baselines.h"
 #include "frame_pairs.h"
+#include "visual_gyro/backend.h"
 #include "visual_gyro/rotation_estimator.h"
 #include "visual_gyro/visual_gyro.h"
 
@@ -20,7 +21,12 @@ namespace eval {
 /// One method's estimate for one frame pair.
 struct MethodEstimate {
   bool valid = false;
-  /// Why not valid: status name and reason ("" when valid).
+  /// kValid when valid; otherwise why not: the estimator's status (vote, paper), the baseline's
+  /// (BaselineResult::status), or the pipeline's rules (the pair's image status for a frozen or
+  /// textureless image, kImplausibleRate, kCalibrationMismatch). Callers decide by this.
+  FrameStatus status = FrameStatus::kNotEstimated;
+  /// Why not valid, for people: the status name and reason (a baseline's own text); "" when
+  /// valid.
   std::string error;
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< b_prev ~ R b_cur; identity when invalid
   Eigen::Vector3d rotation_vector = Eigen::Vector3d::Zero();
@@ -50,8 +56,8 @@ class MethodRunner {
   virtual ~MethodRunner() = default;
   /// Estimates the pair's rotation.
   virtual MethodEstimate run(const FramePair& pair) = 0;
-  /// "cpu" or "cuda".
-  virtual std::string backend() const = 0;
+  /// The backend that votes its estimates (kCpu for the baselines).
+  virtual Backend backend() const = 0;
 };
 
 /// True for the package's own methods (vote, paper, and vote without one part:

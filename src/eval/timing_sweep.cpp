@@ -98,12 +98,12 @@ void timingSweep(const std::string& dataset, double pixel_angle, const TimingSwe
       for (double v : ms) mean += v;
       mean /= ms.size();
       const double median = sorted[sorted.size() / 2];
-      f << "evaluate," << dataset << ',' << point.series << ',' << method << ',' << runner->backend() << ','
+      f << "evaluate," << dataset << ',' << point.series << ',' << method << ',' << backendName(runner->backend()) << ','
         << point.hypotheses << ',' << point.matches << ',' << ms.size() << ',' << real << ',' << mean << ','
         << median << ',' << sorted.front() << ',' << meanOrEmpty(vote) << ',' << meanOrEmpty(vote_device) << ','
         << meanOrEmpty(refine) << '\n';
       std::printf("%-10s %-22s %-6s %10d %8d %6zu %6.2f %10.3f %10.3f\n", point.series, method.c_str(),
-                  runner->backend().c_str(), point.hypotheses, point.matches, ms.size(), real, mean, median);
+                  backendName(runner->backend()), point.hypotheses, point.matches, ms.size(), real, mean, median);
       std::fflush(stdout);
     }
   }

@@ -49,6 +49,120 @@ boost::shared_ptr<ros::M_string> latchedHeader(const std::string& topic) {
   return header;
 }
 
+/// Writes a sequence's gyro samples as Imu messages (gyro only: no orientation or acceleration,
+/// marked -1) in time order, each call up to a time, so that they interleave with the images
+/// (rosbag play publishes by bag time). Samples whose shifted stamp is not positive are dropped.
+class GyroBagWriter {
+ public:
+  /// `offset` [s] shifts the sequence's stamps to bag stamps; `written` counts the messages.
+  GyroBagWriter(const Sequence& sequence, const BagTopics& topics, double offset, rosbag::Bag* bag, int* written)
+      : sequence_(sequence), topics_(topics), offset_(offset), bag_(bag), written_(written) {}
+
+  /// Writes the samples not written yet whose stamp (sequence time) is at most t_limit [s].
+  void writeUntil(double t_limit) {
+    for (; next_ < sequence_.gyro.size() && sequence_.gyro[next_].stamp <= t_limit; ++next_) {
+      const GyroSample& g = sequence_.gyro[next_];
+      sensor_msgs::Imu imu;
+      imu.header.stamp = toRosTime(g.stamp + offset_);
+      imu.header.frame_id = topics_.imu_frame;
+      imu.orientation.w = 1.0;
+      imu.orientation_covariance[0] = -1.0;
+      imu.linear_acceleration_covariance[0] = -1.0;
+      imu.angular_velocity.x = g.angular_velocity.x();
+      imu.angular_velocity.y = g.angular_velocity.y();
+      imu.angular_velocity.z = g.angular_velocity.z();
+      if (imu.header.stamp.toSec() > 0.0) {
+        bag_->write(topics_.gyro, imu.header.stamp, imu);
+        ++*written_;
+      }
+    }
+  }
+
+ private:
+  const Sequence& sequence_;
+  const BagTopics& topics_;
+  double offset_;
+  rosbag::Bag* bag_;
+  int* written_;
+  size_t next_ = 0;
+};
+
+/// The camera's rotation in the gyro frame as a latched /tf_static stamped `stamp`.
+void writeCameraInGyroFrame(const Sequence& sequence, const BagTopics& topics, const ros::Time& stamp,
+                            rosbag::Bag* bag) {
+  tf2_msgs::TFMessage tf;
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = topics.imu_frame;
+  t.child_frame_id = topics.camera_frame;
+  t.transform.rotation = conv::toMsg(Eigen::Quaterniond(sequence.body_from_camera));
+  tf.transforms.push_back(t);
+  bag->write("/tf_static", stamp, tf, latchedHeader<tf2_msgs::TFMessage>("/tf_static"));
+}
+
+/// Image k of the sequence, grey; std::runtime_error when it cannot be read or is not the
+/// calibration's size.
+cv::Mat readSequenceImage(const Sequence& sequence, size_t k) {
+  cv::Mat gray = cv::imread(sequence.image_paths[k], cv::IMREAD_GRAYSCALE);
+  if (gray.empty()) throw std::runtime_error("cannot read image '" + sequence.image_paths[k] + "'");
+  if (gray.cols != sequence.camera.width() || gray.rows != sequence.camera.height()) {
+    throw std::runtime_error("image '" + sequence.image_paths[k] + "' is " + std::to_string(gray.cols) + "x" +
+                             std::to_string(gray.rows) + ", the calibration says " +
+                             std::to_string(sequence.camera.width()) + "x" +
+                             std::to_string(sequence.camera.height()));
+  }
+  return gray;
+}
+
+/// Writes image k's ground-truth pose stamped `stamp`; false (nothing written) when the sequence
+/// has none for it (images outside the ground truth's time span have NaN poses).
+bool writeGroundTruthPose(const Sequence& sequence, size_t k, const ros::Time& stamp, const BagTopics& topics,
+                          rosbag::Bag* bag) {
+  if (!sequence.hasPoses() || k >= sequence.orientations.size() || !sequence.orientations[k].allFinite()) {
+    return false;
+  }
+  geometry_msgs::PoseStamped pose;
+  pose.header.stamp = stamp;
+  pose.header.frame_id = topics.world_frame;
+  pose.pose.orientation = conv::toMsg(Eigen::Quaterniond(sequence.orientations[k]));
+  if (k < sequence.positions.size()) {
+    pose.pose.position.x = sequence.positions[k].x();
+    pose.pose.position.y = sequence.positions[k].y();
+    pose.pose.position.z = sequence.positions[k].z();
+  }
+  bag->write(topics.ground_truth, stamp, pose);
+  return true;
+}
+
+/// Writes `gray` with its camera info (whose header, stamp and seq set, it shares): compressed on
+/// <image>/compressed when the options say so, else raw mono8 on <image>.
+void writeImage(const cv::Mat& gray, const sensor_msgs::CameraInfo& info, const BagWriteOptions& options,
+                rosbag::Bag* bag) {
+  const BagTopics& topics = options.topics;
+  const ros::Time& stamp = info.header.stamp;
+  if (options.compression != compressed_input::Compression::kNone) {
+    sensor_msgs::CompressedImage compressed =
+        compressed_input::encodeGray(gray, options.compression, options.jpeg_quality);
+    compressed.header = info.header;
+    bag->write(topics.camera_info, stamp, info);
+    bag->write(topics.image + "/compressed", stamp, compressed);
+    return;
+  }
+  sensor_msgs::Image image;
+  image.header.stamp = stamp;
+  image.header.frame_id = topics.camera_frame;
+  image.header.seq = info.header.seq;
+  image.height = static_cast<uint32_t>(gray.rows);
+  image.width = static_cast<uint32_t>(gray.cols);
+  image.encoding = sensor_msgs::image_encodings::MONO8;
+  image.is_bigendian = 0;
+  image.step = static_cast<uint32_t>(gray.cols);
+  image.data.resize(static_cast<size_t>(gray.rows) * gray.cols);
+  for (int r = 0; r < gray.rows; ++r) std::copy(gray.ptr<uint8_t>(r), gray.ptr<uint8_t>(r) + gray.cols, &image.data[r * gray.cols]);
+  bag->write(topics.camera_info, stamp, info);
+  bag->write(topics.image, stamp, image);
+}
+
 }  // namespace
 
 BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& bag_path,
@@ -78,95 +192,24 @@ BagWriteSummary writeSequenceBag(const Sequence& sequence, const std::string& ba
   sensor_msgs::CameraInfo info = conv::cameraInfoFromModel(sequence.camera);
   info.header.frame_id = topics.camera_frame;
 
-  // Gyro samples interleaved with the images in time order (rosbag play publishes by bag time).
-  size_t gyro_index = 0;
+  GyroBagWriter gyro(sequence, topics, offset, &bag, &summary.gyro);
   const double gyro_end = summary.last_stamp - offset;
-  auto writeGyroUntil = [&](double t_limit) {
-    for (; gyro_index < sequence.gyro.size() && sequence.gyro[gyro_index].stamp <= t_limit; ++gyro_index) {
-      const GyroSample& g = sequence.gyro[gyro_index];
-      sensor_msgs::Imu imu;
-      imu.header.stamp = toRosTime(stampOf(g.stamp));
-      imu.header.frame_id = topics.imu_frame;
-      imu.orientation.w = 1.0;
-      imu.orientation_covariance[0] = -1.0;
-      imu.linear_acceleration_covariance[0] = -1.0;
-      imu.angular_velocity.x = g.angular_velocity.x();
-      imu.angular_velocity.y = g.angular_velocity.y();
-      imu.angular_velocity.z = g.angular_velocity.z();
-      if (imu.header.stamp.toSec() > 0.0) {
-        bag.write(topics.gyro, imu.header.stamp, imu);
-        ++summary.gyro;
-      }
-    }
-  };
-
-  if (sequence.hasGyro()) {
-    // The camera's rotation in the gyro frame, latched, first in the bag.
-    tf2_msgs::TFMessage tf;
-    geometry_msgs::TransformStamped t;
-    t.header.stamp = toRosTime(summary.first_stamp);
-    t.header.frame_id = topics.imu_frame;
-    t.child_frame_id = topics.camera_frame;
-    t.transform.rotation = conv::toMsg(Eigen::Quaterniond(sequence.body_from_camera));
-    tf.transforms.push_back(t);
-    bag.write("/tf_static", toRosTime(summary.first_stamp), tf, latchedHeader<tf2_msgs::TFMessage>("/tf_static"));
-  }
+  // First in the bag.
+  if (sequence.hasGyro()) writeCameraInGyroFrame(sequence, topics, toRosTime(summary.first_stamp), &bag);
 
   for (size_t k = 0; k < count; ++k) {
     const double t_seq = sequence.stamps[k];
     const ros::Time stamp = toRosTime(stampOf(t_seq));
     if (!(stamp.toSec() > 0.0)) throw std::runtime_error("stamp of image " + std::to_string(k) + " is not positive");
-    writeGyroUntil(std::min(t_seq, gyro_end));
-
-    cv::Mat gray = cv::imread(sequence.image_paths[k], cv::IMREAD_GRAYSCALE);
-    if (gray.empty()) throw std::runtime_error("cannot read image '" + sequence.image_paths[k] + "'");
-    if (gray.cols != sequence.camera.width() || gray.rows != sequence.camera.height()) {
-      throw std::runtime_error("image '" + sequence.image_paths[k] + "' is " + std::to_string(gray.cols) + "x" +
-                               std::to_string(gray.rows) + ", the calibration says " +
-                               std::to_string(sequence.camera.width()) + "x" +
-                               std::to_string(sequence.camera.height()));
-    }
-    // Images outside the ground truth's time span have NaN poses: no ground-truth message for them.
-    if (sequence.hasPoses() && k < sequence.orientations.size() && sequence.orientations[k].allFinite()) {
-      geometry_msgs::PoseStamped pose;
-      pose.header.stamp = stamp;
-      pose.header.frame_id = topics.world_frame;
-      pose.pose.orientation = conv::toMsg(Eigen::Quaterniond(sequence.orientations[k]));
-      if (k < sequence.positions.size()) {
-        pose.pose.position.x = sequence.positions[k].x();
-        pose.pose.position.y = sequence.positions[k].y();
-        pose.pose.position.z = sequence.positions[k].z();
-      }
-      bag.write(topics.ground_truth, stamp, pose);
-      ++summary.poses;
-    }
+    gyro.writeUntil(std::min(t_seq, gyro_end));
+    const cv::Mat gray = readSequenceImage(sequence, k);
+    if (writeGroundTruthPose(sequence, k, stamp, topics, &bag)) ++summary.poses;
     info.header.stamp = stamp;
     info.header.seq = static_cast<uint32_t>(k);
-    if (options.compression != compressed_input::Compression::kNone) {
-      sensor_msgs::CompressedImage compressed =
-          compressed_input::encodeGray(gray, options.compression, options.jpeg_quality);
-      compressed.header = info.header;
-      bag.write(topics.camera_info, stamp, info);
-      bag.write(topics.image + "/compressed", stamp, compressed);
-      ++summary.images;
-      continue;
-    }
-    sensor_msgs::Image image;
-    image.header.stamp = stamp;
-    image.header.frame_id = topics.camera_frame;
-    image.header.seq = static_cast<uint32_t>(k);
-    image.height = static_cast<uint32_t>(gray.rows);
-    image.width = static_cast<uint32_t>(gray.cols);
-    image.encoding = sensor_msgs::image_encodings::MONO8;
-    image.is_bigendian = 0;
-    image.step = static_cast<uint32_t>(gray.cols);
-    image.data.resize(static_cast<size_t>(gray.rows) * gray.cols);
-    for (int r = 0; r < gray.rows; ++r) std::copy(gray.ptr<uint8_t>(r), gray.ptr<uint8_t>(r) + gray.cols, &image.data[r * gray.cols]);
-    bag.write(topics.camera_info, stamp, info);
-    bag.write(topics.image, stamp, image);
+    writeImage(gray, info, options, &bag);
     ++summary.images;
   }
-  writeGyroUntil(gyro_end);
+  gyro.writeUntil(gyro_end);
   bag.close();
   return summary;
 }

@@ -49,7 +49,7 @@ void NodeDiagnostics::setRejectedChange(const std::string& why) {
   rejected_change_ = why;
 }
 
-void NodeDiagnostics::setBackend(const std::string& used, const std::string& warning) {
+void NodeDiagnostics::setBackend(std::optional<Backend> used, const std::string& warning) {
   std::lock_guard<std::mutex> lock(mutex_);
   backend_used_ = used;
   backend_warning_ = warning;
@@ -195,9 +195,9 @@ void NodeDiagnostics::addValues(diagnostic_updater::DiagnosticStatusWrapper& sta
              w.estimates > 0 ? 100.0 * static_cast<double>(w.half_resolution) / estimates : 0.0);
   status.add("Method", context.method.empty() ? std::string("?") : context.method);
   status.add("Backend requested", context.backend_requested);
-  const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;
+  const std::optional<Backend> backend_used = backendInUse(context);
   const std::string& backend_warning = context.backend_warning.empty() ? backend_warning_ : context.backend_warning;
-  status.add("Backend", backend_used.empty() ? std::string("(not started: no image yet)") : backend_used);
+  status.add("Backend", backend_used ? std::string(backendName(*backend_used)) : std::string("(not started: no image yet)"));
   if (!backend_warning.empty()) status.add("Backend warning", backend_warning);
   status.add("Images received", total_images_);
   status.add("Estimates published", total_estimates_);
@@ -216,6 +216,10 @@ void NodeDiagnostics::addValues(diagnostic_updater::DiagnosticStatusWrapper& sta
   if (!calibration_mismatch_.empty()) status.add("Calibration mismatch", calibration_mismatch_);
   if (!settings_problem_.empty()) status.add("Settings problem", settings_problem_);
   if (!rejected_change_.empty()) status.add("Rejected settings change", rejected_change_);
+}
+
+std::optional<Backend> NodeDiagnostics::backendInUse(const Context& context) const {
+  return context.backend_used ? context.backend_used : backend_used_;
 }
 
 std::string NodeDiagnostics::slowCameraWarning(const Context& context, uint64_t recent_resets) const {
@@ -247,7 +251,7 @@ void NodeDiagnostics::summarize(diagnostic_updater::DiagnosticStatusWrapper& sta
   const double estimates_hz = w.estimates / span;
   const double valid_hz = (w.estimates - w.invalid) / span;
   const double mean_latency = w.estimates > 0 ? w.latency_sum_ms / w.estimates : 0.0;
-  const std::string& backend_used = context.backend_used.empty() ? backend_used_ : context.backend_used;
+  const std::optional<Backend> backend_used = backendInUse(context);
   const std::string slow_camera = slowCameraWarning(context, recent_resets);
   // A storm: resets at a quarter of the images or more (at least kMinStormResets) within the
   // recent span. A bag replayed in a loop resets once per loop; far fewer.
@@ -293,7 +297,7 @@ void NodeDiagnostics::summarize(diagnostic_updater::DiagnosticStatusWrapper& sta
     status.summary(Level::OK, "subscribed, waiting for images");
   } else {
     status.summaryf(Level::OK, "%.1f Hz out (expected %.1f Hz), %.1f ms latency, backend %s",
-                    valid_hz, expected_hz, mean_latency, backend_used.c_str());
+                    valid_hz, expected_hz, mean_latency, backend_used ? backendName(*backend_used) : "");
   }
 }
 

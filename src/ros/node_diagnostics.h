@@ -5,10 +5,13 @@
 #include <deque>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <diagnostic_updater/DiagnosticStatusWrapper.h>
+
+#include "visual_gyro/backend.h"
 
 namespace visual_gyro {
 
@@ -29,7 +32,9 @@ class NodeDiagnostics {
   struct Context {
     bool subscribed = false;          ///< inputs subscribed (an output has a subscriber)
     std::string image_topic, info_topic;
-    std::string method, backend_requested, backend_used, backend_warning;
+    std::string method, backend_requested, backend_warning;
+    /// The backend in use; empty: the one setBackend() named.
+    std::optional<Backend> backend_used;
     double max_gap = 0.0;  ///< [s] the node's ~max_gap (a larger stamp gap resets); 0: unknown
   };
 
@@ -76,8 +81,9 @@ class NodeDiagnostics {
   /// Why the last live settings change was rejected (the previous settings stay in use): a WARN
   /// until a later change is accepted, which clears it with "".
   void setRejectedChange(const std::string& why);
-  /// The backend in use and its last warning (when the context does not name them).
-  void setBackend(const std::string& used, const std::string& warning);
+  /// The backend in use (empty: not started yet) and its last warning (when the context does not
+  /// name them).
+  void setBackend(std::optional<Backend> used, const std::string& warning);
   std::string cameraProblem() const;
   std::string calibrationMismatch() const;
   std::string settingsProblem() const;
@@ -106,6 +112,8 @@ class NodeDiagnostics {
   /// "" unless the camera's interval (median of recent_steps_) exceeds context.max_gap while the
   /// state was reset recently; then the WARN, with a max_gap that would do.
   std::string slowCameraWarning(const Context& context, uint64_t recent_resets) const;
+  /// The backend the context names, else the one setBackend() named; mutex_ held.
+  std::optional<Backend> backendInUse(const Context& context) const;
 
   /// Images and resets of one past window, ending at `end` [s].
   struct RecentWindow {
@@ -125,7 +133,8 @@ class NodeDiagnostics {
   uint64_t total_no_texture_ = 0;
   std::string last_skip_reason_, last_invalid_reason_, last_reset_cause_, last_no_texture_reason_;
   std::string camera_problem_, settings_problem_, rejected_change_, calibration_mismatch_;
-  std::string backend_used_, backend_warning_;
+  std::optional<Backend> backend_used_;
+  std::string backend_warning_;
 };
 
 }  // namespace visual_gyro

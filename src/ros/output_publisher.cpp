@@ -14,7 +14,22 @@ namespace conv = ros_conversions;
 namespace output_messages {
 
 namespace {
+
 uint32_t count(int n) { return static_cast<uint32_t>(std::max(n, 0)); }
+
+/// The frame's angular velocity [rad/s] in the output frame (output <- camera `to_output`). An
+/// invalid estimate has a zero rate: what a consumer that ignores `valid` integrates, and what
+/// the offline evaluation scores.
+Eigen::Vector3d outputRate(const FrameOutput& frame, const Eigen::Matrix3d& to_output) {
+  const Eigen::Vector3d omega = frame.valid ? frame.result->angular_velocity : Eigen::Vector3d::Zero();
+  return to_output * omega;
+}
+
+/// The covariance [(rad/s)^2] of the frame's angular velocity in the output frame.
+Eigen::Matrix3d outputRateCovariance(const FrameOutput& frame, const Eigen::Matrix3d& to_output) {
+  return to_output * frame.result->angular_velocity_covariance * to_output.transpose();
+}
+
 }  // namespace
 
 std::string statusText(const FrameResult& result, bool valid) {
@@ -28,12 +43,11 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   const FrameResult& result = *frame.result;
   const RotationResult& rot = result.rotation;
   const double stamp = frame.image_header.stamp.toSec();
-  // An invalid estimate is the identity, with a zero rate: what a consumer that ignores `valid`
-  // integrates, and what the offline evaluation scores.
+  // An invalid estimate is the identity (with a zero rate, outputRate): what a consumer that
+  // ignores `valid` integrates, and what the offline evaluation scores.
   const Eigen::Matrix3d rotation = frame.valid ? rot.rotation : Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d omega = frame.valid ? result.angular_velocity : Eigen::Vector3d::Zero();
   const Eigen::Matrix3d rotation_out = to_output * rotation * to_output.transpose();
-  const Eigen::Vector3d omega_out = to_output * omega;
+  const Eigen::Vector3d omega_out = outputRate(frame, to_output);
 
   visual_gyro::RotationEstimatePtr msg(new visual_gyro::RotationEstimate);
   msg->header = header;
@@ -49,8 +63,7 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   msg->angular_velocity.y = omega_out.y();
   msg->angular_velocity.z = omega_out.z();
   conv::toRowMajor(to_output * rot.covariance * to_output.transpose(), &msg->rotation_covariance);
-  conv::toRowMajor(to_output * result.angular_velocity_covariance * to_output.transpose(),
-                   &msg->angular_velocity_covariance);
+  conv::toRowMajor(outputRateCovariance(frame, to_output), &msg->angular_velocity_covariance);
   msg->features = count(result.features);
   msg->matches = count(rot.matches_used);
   msg->tracked = count(result.tracked);
@@ -60,7 +73,7 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   msg->winning_votes = count(rot.winning_votes);
   msg->inliers = count(rot.inliers);
   msg->method = settings.method;
-  msg->backend = frame.backend;
+  msg->backend = backendName(frame.backend);
   msg->detect_ms = result.times.detect;
   msg->describe_ms = result.times.describe;
   msg->match_ms = result.times.match;
@@ -72,16 +85,20 @@ visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, cons
   return msg;
 }
 
-sensor_msgs::ImuPtr imu(const visual_gyro::RotationEstimate& estimate, const OutputSettings& settings) {
-  if (!estimate.valid && !settings.publish_invalid) return nullptr;
+sensor_msgs::ImuPtr imu(const FrameOutput& frame, const std_msgs::Header& header, const Eigen::Matrix3d& to_output,
+                        const OutputSettings& settings) {
+  if (!frame.valid && !settings.publish_invalid) return nullptr;
   sensor_msgs::ImuPtr imu(new sensor_msgs::Imu);
-  imu->header = estimate.header;
+  imu->header = header;
   imu->orientation.w = 1.0;
   imu->orientation_covariance[0] = -1.0;          // REP 145: no orientation
   imu->linear_acceleration_covariance[0] = -1.0;  // REP 145: no acceleration
-  if (estimate.valid) {
-    imu->angular_velocity = estimate.angular_velocity;
-    imu->angular_velocity_covariance = estimate.angular_velocity_covariance;
+  if (frame.valid) {
+    const Eigen::Vector3d omega = outputRate(frame, to_output);
+    imu->angular_velocity.x = omega.x();
+    imu->angular_velocity.y = omega.y();
+    imu->angular_velocity.z = omega.z();
+    conv::toRowMajor(outputRateCovariance(frame, to_output), &imu->angular_velocity_covariance);
   } else {
     conv::toRowMajor(Eigen::Matrix3d::Identity() * settings.invalid_variance, &imu->angular_velocity_covariance);
   }
@@ -138,7 +155,7 @@ bool OutputPublisher::publish(const FrameOutput& frame, const OutputSettings& se
     header.stamp += shift;
     visual_gyro::RotationEstimatePtr msg = output_messages::rotationEstimate(frame, header, to_output, settings);
     msg->previous_stamp += shift;
-    const sensor_msgs::ImuPtr imu = output_messages::imu(*msg, settings);
+    const sensor_msgs::ImuPtr imu = output_messages::imu(frame, header, to_output, settings);
     msg->latency_ms = (ros::WallTime::now() - frame.wall_start).toSec() * 1e3;
     if (imu) {
       imu_pub_.publish(imu);

@@ -39,7 +39,7 @@ struct FrameOutput {
   double previous_stamp = 0.0;    ///< that previous image's stamp [s]
   const FrameResult* result = nullptr;
   bool valid = false;             ///< paired and result->hasEstimate(): the estimate can be trusted
-  std::string backend;            ///< the backend that estimated it
+  Backend backend = Backend::kCpu;  ///< the backend that estimated it
   ros::WallTime wall_start;       ///< when the image callback began (latency)
 };
 
@@ -55,10 +55,13 @@ std::string statusText(const FrameResult& result, bool valid);
 visual_gyro::RotationEstimatePtr rotationEstimate(const FrameOutput& frame, const std_msgs::Header& header,
                                                   const Eigen::Matrix3d& to_output, const OutputSettings& settings);
 
-/// The Imu for `estimate` (REP 145: no orientation, no acceleration): its rate and covariance when
-/// valid; when invalid, null unless settings.publish_invalid, then a zero rate with
-/// invalid_variance on the diagonal, so that a filter barely moves.
-sensor_msgs::ImuPtr imu(const visual_gyro::RotationEstimate& estimate, const OutputSettings& settings);
+/// The Imu of `frame` (had_previous must be true; REP 145: no orientation, no acceleration) with
+/// `header`: when valid, its rate and rate covariance rotated into the output frame by `to_output`
+/// (output <- camera), as in its RotationEstimate; when invalid, null unless
+/// settings.publish_invalid, then a zero rate with invalid_variance on the diagonal, so that a
+/// filter barely moves.
+sensor_msgs::ImuPtr imu(const FrameOutput& frame, const std_msgs::Header& header, const Eigen::Matrix3d& to_output,
+                        const OutputSettings& settings);
 
 }  // namespace output_messages
 

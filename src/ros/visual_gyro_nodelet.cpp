@@ -259,6 +259,11 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
     return;
   }
   if (reset_pending_.exchange(false)) resetState("inputs re-subscribed");
+  // The node's own stamp policy, not a copy of the pipeline's checks: a stamp jumping back (a bag
+  // played in a loop) or a gap above ~max_gap (a node parameter) resets the state so that the
+  // pipeline takes the frame as a first one, and a repeated stamp is reported as equal_stamp before
+  // the image is converted or the camera looked at. Whatever passes here still meets the
+  // pipeline's checks (FrameStatus kStampRejected, kTimeStepTooSmall), reported below.
   if (have_previous_) {
     if (stamp == previous_stamp_) {
       NODELET_WARN_THROTTLE(10.0, "visual_gyro: image stamp %.6f equals the previous one; frame skipped", stamp);
@@ -314,17 +319,13 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
   health_.processed();
   reportCalibrationFit(result);
 
-  if (!result.rotation.backend.empty() && result.rotation.backend != backend_used_) {
-    backend_used_ = result.rotation.backend;
-    health_.setBackend(backend_used_, backend_warning_);
-  }
   FrameOutput frame;
   frame.image_header = image.header;
   frame.had_previous = had_previous;
   frame.previous_stamp = previous_stamp;
   frame.result = &result;
   frame.valid = had_previous && result.hasEstimate();
-  frame.backend = backend_used_;
+  frame.backend = pipeline_->backend();
   frame.wall_start = wall_start;
   if (!outputs_->publish(frame, outputSettings(config))) health_.skipped("tf");
 }
@@ -354,16 +355,15 @@ bool VisualGyroNodelet::preparePipeline(const CameraModel& camera, const VisualG
       if (!pipeline_) {
         WarningSink warn = [this](const std::string& message) {
           backend_warning_ = message;
-          health_.setBackend(backend_used_, backend_warning_);
+          health_.setBackend(std::nullopt, backend_warning_);  // not chosen yet
           NODELET_WARN("visual_gyro: %s", message.c_str());
         };
         pipeline_.reset(new VisualGyro(camera, settings, warn));
         applied_config_version_ = config_version;
-        backend_used_ = pipeline_->backendName();
-        health_.setBackend(backend_used_, backend_warning_);
+        health_.setBackend(pipeline_->backend(), backend_warning_);
         NODELET_INFO("visual_gyro: camera %dx%d fx %.2f fy %.2f, method '%s', backend '%s' (requested '%s')",
                      camera.width(), camera.height(), camera.fx(), camera.fy(), methodName(settings.estimator.method),
-                     backend_used_.c_str(), params_.backend.c_str());
+                     backendName(pipeline_->backend()), params_.backend.c_str());
       } else {
         pipeline_->setCamera(camera);
         NODELET_INFO_THROTTLE(10.0, "visual_gyro: camera changed (%dx%d fx %.2f); state reset", camera.width(),

@@ -138,7 +138,7 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   bool have_failed_camera_ = false;
   bool have_previous_ = false;  ///< the pipeline holds a previous frame
   double previous_stamp_ = 0.0;
-  std::string backend_used_, backend_warning_;
+  std::string backend_warning_;  ///< the backend factory's warning ("" when none)
 
   std::mutex config_mutex_;  ///< 3: guards the accepted live settings below
   Config config_;

@@ -195,23 +195,40 @@ double YawPlot::valueAt(Panel panel, double y) const {
   return v.min + (y - bottom) / settings_.height * (v.max - v.min);
 }
 
+namespace {
+
+/// A marker of the plot in `frame_id` at `time`: added, unrotated, unit scale, axis colour.
+visualization_msgs::Marker plotMarker(const std::string& frame_id, const ros::Time& time, const std::string& ns,
+                                      int id, int type) {
+  visualization_msgs::Marker m;
+  m.header.frame_id = frame_id;
+  m.header.stamp = time;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose.orientation.w = 1.0;
+  m.scale.x = m.scale.y = m.scale.z = 1.0;
+  m.color = kAxisColour;
+  return m;
+}
+
+/// Approximate half width [m] of a label of text height `size` [m]: rviz centres text on its
+/// position.
+double labelHalfWidth(const std::string& s, double size) { return 0.3 * size * static_cast<double>(s.size()); }
+
+/// Appends the segment a-b to a LINE_LIST marker.
+void addLine(visualization_msgs::Marker* m, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  m->points.push_back(point(a));
+  m->points.push_back(point(b));
+}
+
+}  // namespace
+
 visualization_msgs::MarkerArray YawPlot::markers(double stamp) const {
   visualization_msgs::MarkerArray array;
   ros::Time time;
   time.fromSec(std::max(stamp, 0.0));
-  auto base = [&](const std::string& ns, int id, int type) {
-    visualization_msgs::Marker m;
-    m.header.frame_id = settings_.frame_id;
-    m.header.stamp = time;
-    m.ns = ns;
-    m.id = id;
-    m.type = type;
-    m.action = visualization_msgs::Marker::ADD;
-    m.pose.orientation.w = 1.0;
-    m.scale.x = m.scale.y = m.scale.z = 1.0;
-    m.color = kAxisColour;
-    return m;
-  };
   visualization_msgs::Marker clear;
   clear.header.frame_id = settings_.frame_id;
   clear.header.stamp = time;
@@ -220,31 +237,39 @@ visualization_msgs::MarkerArray YawPlot::markers(double stamp) const {
   array.markers.push_back(clear);
   if (empty()) return array;
 
+  addAxes(time, &array);
+  const std::vector<Sample> estimate(estimate_.begin(), estimate_.end());
+  const std::vector<Sample> truth(truth_.begin(), truth_.end());
+  // Truth wide and underneath, the estimate narrow on top (z towards a viewer from above).
+  addSeries(time, "yaw_estimate", 0, kYaw, estimate, kEstimateColour, 0.03, 0.02, &array);
+  addSeries(time, "yaw_ground_truth", 1, kYaw, truth, kTruthColour, 0.08, 0.01, &array);
+  addSeries(time, "rate_estimate", 2, kRate, rates(estimate_), kEstimateColour, 0.03, 0.02, &array);
+  addSeries(time, "rate_ground_truth", 3, kRate, rates(truth_), kTruthColour, 0.08, 0.01, &array);
+  addLegend(time, &array);
+  return array;
+}
+
+void YawPlot::addAxes(const ros::Time& time, visualization_msgs::MarkerArray* array) const {
   const double size = settings_.text_size;
   int label_id = 0;
-  auto text = [&](const std::string& ns, const std::string& s, const Eigen::Vector2d& at,
-                  const std_msgs::ColorRGBA& colour) {
-    visualization_msgs::Marker m = base(ns, label_id++, visualization_msgs::Marker::TEXT_VIEW_FACING);
+  auto text = [&](const std::string& s, const Eigen::Vector2d& at) {
+    visualization_msgs::Marker m =
+        plotMarker(settings_.frame_id, time, "labels", label_id++, visualization_msgs::Marker::TEXT_VIEW_FACING);
     m.pose.position.x = at.x();
     m.pose.position.y = at.y();
     m.scale.x = m.scale.y = m.scale.z = size;
-    m.color = colour;
+    m.color = kTextColour;
     m.text = s;
-    array.markers.push_back(m);
+    array->markers.push_back(m);
   };
-  // Approximate width of a label: rviz centres text on its position.
-  auto halfWidth = [&](const std::string& s) { return 0.3 * size * static_cast<double>(s.size()); };
+  auto halfWidth = [size](const std::string& s) { return labelHalfWidth(s, size); };
 
   const PlotAxis t_axis = timeAxis();
-  visualization_msgs::Marker axes = base("axes", 0, visualization_msgs::Marker::LINE_LIST);
+  visualization_msgs::Marker axes = plotMarker(settings_.frame_id, time, "axes", 0, visualization_msgs::Marker::LINE_LIST);
   axes.scale.x = 0.015;
-  visualization_msgs::Marker grid = base("axes", 1, visualization_msgs::Marker::LINE_LIST);
+  visualization_msgs::Marker grid = plotMarker(settings_.frame_id, time, "axes", 1, visualization_msgs::Marker::LINE_LIST);
   grid.scale.x = 0.01;
   grid.color = kGridColour;
-  auto line = [](visualization_msgs::Marker* m, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    m->points.push_back(point(a));
-    m->points.push_back(point(b));
-  };
 
   const char* titles[2] = {"integrated yaw [deg]", "yaw rate [deg/s]"};
   for (Panel panel : {kYaw, kRate}) {
@@ -253,86 +278,84 @@ visualization_msgs::MarkerArray YawPlot::markers(double stamp) const {
     const Eigen::Vector2d upper_right = toPlot(panel, t_axis.max, v.max);
     const double x0 = lower_left.x(), x1 = upper_right.x(), y0 = lower_left.y(), y1 = upper_right.y();
     // Frame of the panel.
-    line(&axes, {x0, y0}, {x1, y0});
-    line(&axes, {x1, y0}, {x1, y1});
-    line(&axes, {x1, y1}, {x0, y1});
-    line(&axes, {x0, y1}, {x0, y0});
+    addLine(&axes, {x0, y0}, {x1, y0});
+    addLine(&axes, {x1, y0}, {x1, y1});
+    addLine(&axes, {x1, y1}, {x0, y1});
+    addLine(&axes, {x0, y1}, {x0, y0});
     // Value ticks, grid lines and labels.
     const double tick = 0.08;
     for (double value = v.min; value <= v.max + 1e-9 * v.step; value += v.step) {
       const double y = toPlot(panel, t_axis.min, value).y();
-      line(&axes, {x0 - tick, y}, {x0, y});
-      if (value > v.min + 1e-9 * v.step && value < v.max - 1e-9 * v.step) line(&grid, {x0, y}, {x1, y});
+      addLine(&axes, {x0 - tick, y}, {x0, y});
+      if (value > v.min + 1e-9 * v.step && value < v.max - 1e-9 * v.step) addLine(&grid, {x0, y}, {x1, y});
       const std::string s = tickText(value, v.step);
-      text("labels", s, {x0 - tick - 0.05 - halfWidth(s), y}, kTextColour);
+      text(s, {x0 - tick - 0.05 - halfWidth(s), y});
     }
     // Time ticks on both panels, labels under each.
     const double first = std::ceil(t_axis.min / t_axis.step - 1e-9) * t_axis.step;
     for (double tt = first; tt <= t_axis.max + 1e-9 * t_axis.step; tt += t_axis.step) {
       const double x = toPlot(panel, tt, v.min).x();
-      line(&axes, {x, y0 - tick}, {x, y0});
-      if (tt > t_axis.min + 1e-9 && tt < t_axis.max - 1e-9) line(&grid, {x, y0}, {x, y1});
-      text("labels", tickText(tt, t_axis.step), {x, y0 - tick - 0.7 * size}, kTextColour);
+      addLine(&axes, {x, y0 - tick}, {x, y0});
+      if (tt > t_axis.min + 1e-9 && tt < t_axis.max - 1e-9) addLine(&grid, {x, y0}, {x, y1});
+      text(tickText(tt, t_axis.step), {x, y0 - tick - 0.7 * size});
     }
-    text("labels", titles[panel], {x0 + halfWidth(titles[panel]), y1 + 0.8 * size}, kTextColour);
-    text("labels", "time [s]", {x1 - halfWidth("time [s]"), y0 - tick - 1.9 * size}, kTextColour);
+    text(titles[panel], {x0 + halfWidth(titles[panel]), y1 + 0.8 * size});
+    text("time [s]", {x1 - halfWidth("time [s]"), y0 - tick - 1.9 * size});
   }
-  array.markers.push_back(axes);
-  array.markers.push_back(grid);
+  array->markers.push_back(axes);
+  array->markers.push_back(grid);
+}
 
-  // The four series, clipped to the window (the point left of it is moved onto the edge).
-  auto series = [&](const std::string& ns, int id, Panel panel, const std::vector<Sample>& samples,
-                    const std_msgs::ColorRGBA& colour, double line_width, double z) {
-    visualization_msgs::Marker m = base(ns, id, visualization_msgs::Marker::LINE_STRIP);
-    m.scale.x = line_width;
-    m.pose.position.z = z;
-    m.color = colour;
-    for (size_t i = 0; i < samples.size(); ++i) {
-      Sample s = samples[i];
-      if (s.t < t_axis.min) {
-        if (i + 1 >= samples.size() || samples[i + 1].t <= t_axis.min) continue;
-        const Sample& n = samples[i + 1];
-        s.value += (n.value - s.value) * (t_axis.min - s.t) / (n.t - s.t);
-        s.t = t_axis.min;
-      }
-      m.points.push_back(point(toPlot(panel, s.t, s.value)));
+void YawPlot::addSeries(const ros::Time& time, const std::string& ns, int id, Panel panel,
+                        const std::vector<Sample>& samples, const std_msgs::ColorRGBA& colour, double line_width,
+                        double z, visualization_msgs::MarkerArray* array) const {
+  const PlotAxis t_axis = timeAxis();
+  visualization_msgs::Marker m = plotMarker(settings_.frame_id, time, ns, id, visualization_msgs::Marker::LINE_STRIP);
+  m.scale.x = line_width;
+  m.pose.position.z = z;
+  m.color = colour;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    Sample s = samples[i];
+    if (s.t < t_axis.min) {
+      if (i + 1 >= samples.size() || samples[i + 1].t <= t_axis.min) continue;
+      const Sample& n = samples[i + 1];
+      s.value += (n.value - s.value) * (t_axis.min - s.t) / (n.t - s.t);
+      s.t = t_axis.min;
     }
-    // rviz needs two points for a line; a lone point is drawn as a zero-length line.
-    if (m.points.size() == 1) m.points.push_back(m.points.front());
-    if (!m.points.empty()) array.markers.push_back(m);
-  };
-  const std::vector<Sample> estimate(estimate_.begin(), estimate_.end());
-  const std::vector<Sample> truth(truth_.begin(), truth_.end());
-  // Truth wide and underneath, the estimate narrow on top (z towards a viewer from above).
-  series("yaw_estimate", 0, kYaw, estimate, kEstimateColour, 0.03, 0.02);
-  series("yaw_ground_truth", 1, kYaw, truth, kTruthColour, 0.08, 0.01);
-  series("rate_estimate", 2, kRate, rates(estimate_), kEstimateColour, 0.03, 0.02);
-  series("rate_ground_truth", 3, kRate, rates(truth_), kTruthColour, 0.08, 0.01);
+    m.points.push_back(point(toPlot(panel, s.t, s.value)));
+  }
+  // rviz needs two points for a line; a lone point is drawn as a zero-length line.
+  if (m.points.size() == 1) m.points.push_back(m.points.front());
+  if (!m.points.empty()) array->markers.push_back(m);
+}
 
-  // Legend above the yaw panel's right end; the ground-truth entry only when there is truth.
+void YawPlot::addLegend(const ros::Time& time, visualization_msgs::MarkerArray* array) const {
+  const double size = settings_.text_size;
+  const PlotAxis t_axis = timeAxis();
   const Eigen::Vector2d top_right = toPlot(kYaw, t_axis.max, valueAxis(kYaw).max);
   double x = top_right.x();
   const double y = top_right.y() + 0.8 * size;
   int legend_id = 100;
   auto entry = [&](const std::string& s, const std_msgs::ColorRGBA& colour) {
-    x -= 2.0 * halfWidth(s);
-    visualization_msgs::Marker sample = base("legend", legend_id++, visualization_msgs::Marker::LINE_LIST);
+    x -= 2.0 * labelHalfWidth(s, size);
+    visualization_msgs::Marker sample =
+        plotMarker(settings_.frame_id, time, "legend", legend_id++, visualization_msgs::Marker::LINE_LIST);
     sample.scale.x = 0.05;
     sample.color = colour;
-    line(&sample, {x - 0.5, y}, {x - 0.1, y});
-    array.markers.push_back(sample);
-    visualization_msgs::Marker label = base("legend", legend_id++, visualization_msgs::Marker::TEXT_VIEW_FACING);
-    label.pose.position.x = x + halfWidth(s);
+    addLine(&sample, {x - 0.5, y}, {x - 0.1, y});
+    array->markers.push_back(sample);
+    visualization_msgs::Marker label =
+        plotMarker(settings_.frame_id, time, "legend", legend_id++, visualization_msgs::Marker::TEXT_VIEW_FACING);
+    label.pose.position.x = x + labelHalfWidth(s, size);
     label.pose.position.y = y;
     label.scale.x = label.scale.y = label.scale.z = size;
     label.color = colour;
     label.text = s;
-    array.markers.push_back(label);
+    array->markers.push_back(label);
     x -= 0.9;
   };
   if (!truth_.empty()) entry("ground truth", kTruthColour);
   entry("estimate", kEstimateColour);
-  return array;
 }
 
 }  // namespace visual_gyro

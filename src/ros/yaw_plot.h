@@ -81,6 +81,18 @@ class YawPlot {
   void trim();
   void pushTruth(double stamp, const Eigen::Quaterniond& orientation);
   static std::vector<Sample> rates(const std::deque<Sample>& yaw);
+  /// markers()' panel frames, value and time ticks, grid lines and labels (namespaces axes and
+  /// labels), stamped `time`.
+  void addAxes(const ros::Time& time, visualization_msgs::MarkerArray* array) const;
+  /// markers()' line of `samples` in `panel` (ns/id, colour, line width [m], height z [m] above
+  /// the plot), clipped to the time window: the point left of it is moved onto its edge. Nothing
+  /// without a point in the window.
+  void addSeries(const ros::Time& time, const std::string& ns, int id, Panel panel, const std::vector<Sample>& samples,
+                 const std_msgs::ColorRGBA& colour, double line_width, double z,
+                 visualization_msgs::MarkerArray* array) const;
+  /// markers()' legend above the yaw panel's right end; the ground-truth entry only when there is
+  /// truth.
+  void addLegend(const ros::Time& time, visualization_msgs::MarkerArray* array) const;
 
   YawPlotSettings settings_;
   bool started_ = false;

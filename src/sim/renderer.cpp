@@ -384,15 +384,30 @@ double groundDistanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& 
   return (p2 - (a2 + s * ab)).norm();
 }
 
-void buildStreetScene(const RenderSettings& settings, Scene* scene) {
-  const double duration = (settings.frames - 1) / settings.rate_hz;
-  const Trajectory trajectory(settings.preset, duration);
-  SceneBuilder builder(scene, settings.seed);
-  Rng rng(mixSeed(settings.seed, 0x5354524545ull));
-
-  // The path (0.5 m apart), and its part seen by the rendered frames.
+/// Where a street scene's objects may stand: the driven path (0.5 m apart) and the part the
+/// rendered frames see (their centre and radius in the ground plane).
+struct StreetLayout {
   std::vector<Eigen::Vector3d> path;
-  for (double t = trajectory.tMin(); t <= trajectory.tMax(); t += 0.05) path.push_back(trajectory.interpolate(t));
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< y = 0
+  double radius = 0.0;  ///< [m] of the rendered positions around centre
+  double s_max = 0.0;   ///< [m] arc length of the whole path
+
+  /// Distance from the segment [a, b] near arc length s [m] to the path; the path never comes
+  /// back on itself (the turns alternate), so only the stretch within 150 m is searched.
+  double clearance(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) const {
+    const long centre_index = std::lround(s / (kDriveSpeed * 0.05));
+    const size_t lo = static_cast<size_t>(std::max(0L, centre_index - 300));
+    const size_t hi = std::min(path.size(), static_cast<size_t>(std::max(0L, centre_index + 300)));
+    double d = std::numeric_limits<double>::infinity();
+    for (size_t i = lo; i < hi; ++i) d = std::min(d, groundDistanceToSegment(path[i], a, b));
+    return d;
+  }
+};
+
+/// The layout of a drive along `trajectory` rendered over [0, duration] s.
+StreetLayout streetLayout(const Trajectory& trajectory, double duration) {
+  StreetLayout layout;
+  for (double t = trajectory.tMin(); t <= trajectory.tMax(); t += 0.05) layout.path.push_back(trajectory.interpolate(t));
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   int inside = 0;
   for (double t = 0.0; t <= duration + 1e-9; t += 0.05, ++inside) centre += trajectory.interpolate(t);
@@ -401,17 +416,98 @@ void buildStreetScene(const RenderSettings& settings, Scene* scene) {
   double radius = 0.0;
   for (double t = 0.0; t <= duration + 1e-9; t += 0.05)
     radius = std::max(radius, (trajectory.interpolate(t) - centre).norm());
-  // Distance from a segment near arc length s [m] to the path; the path never comes back on
-  // itself (the turns alternate), so only the stretch within 150 m is searched.
-  auto clearance = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, double s) {
-    const long centre_index = std::lround(s / (kDriveSpeed * 0.05));
-    const size_t lo = static_cast<size_t>(std::max(0L, centre_index - 300));
-    const size_t hi = std::min(path.size(), static_cast<size_t>(std::max(0L, centre_index + 300)));
-    double d = std::numeric_limits<double>::infinity();
-    for (size_t i = lo; i < hi; ++i) d = std::min(d, groundDistanceToSegment(path[i], a, b));
-    return d;
-  };
+  layout.centre = centre;
+  layout.radius = radius;
+  layout.s_max = kDriveSpeed * (trajectory.tMax() - trajectory.tMin());
+  return layout;
+}
+
+/// Facades on both sides, parallel to the local heading, 6-15 m out, with gaps; any that would
+/// come within 4.5 m of the road (inside of a turn) are shortened or dropped.
+void addFacades(const Trajectory& trajectory, const StreetLayout& layout, Rng* rng, SceneBuilder* builder) {
   const Eigen::Vector3d down(0, 1, 0);
+  TextureStyle facade_style;
+  for (int side = -1; side <= 1; side += 2) {
+    double s = rng->uniform(0.0, 5.0);
+    while (s < layout.s_max) {
+      double length = rng->uniform(8.0, 25.0);
+      const double gap = rng->uniform() < 0.2 ? rng->uniform(12.0, 25.0) : rng->uniform(2.0, 10.0);
+      const double lateral = rng->uniform(6.0, 15.0), height = rng->uniform(4.0, 14.0);
+      for (int attempt = 0; attempt < 2; ++attempt, length *= 0.5) {
+        const double t = trajectory.tMin() + (s + 0.5 * length) / kDriveSpeed;
+        const double h = trajectory.heading(t);
+        const Eigen::Vector3d f(std::sin(h), 0, std::cos(h)), r(std::cos(h), 0, -std::sin(h));
+        const Eigen::Vector3d a = trajectory.interpolate(t) + side * lateral * r - 0.5 * length * f;
+        const Eigen::Vector3d b = a + length * f;
+        if (layout.clearance(a, b, s + 0.5 * length) < 4.5) continue;
+        builder->addPlane(Eigen::Vector3d(a.x(), kCameraHeight - height, a.z()), f, down, length, height,
+                          1.5 * lateral, facade_style, false, -1.0f, /*pool=*/0);
+        break;
+      }
+      s += length + gap;
+    }
+  }
+}
+
+/// Poles and boxes close to the road.
+void addRoadsideObjects(const Trajectory& trajectory, const StreetLayout& layout, Rng* rng, SceneBuilder* builder) {
+  TextureStyle object_style;
+  object_style.max_shape = 40.0;
+  for (double s = rng->uniform(5.0, 15.0); s < layout.s_max; s += rng->uniform(12.0, 30.0)) {
+    const int side = rng->uniform() < 0.5 ? -1 : 1;
+    const bool pole = rng->uniform() < 0.6;
+    const double t = trajectory.tMin() + s / kDriveSpeed;
+    const double h = trajectory.heading(t);
+    const Eigen::Vector3d r(std::cos(h), 0, -std::sin(h));
+    const double lateral = pole ? rng->uniform(3.0, 4.5) : rng->uniform(3.8, 5.5);
+    const double sx = pole ? 0.25 : rng->uniform(1.0, 2.5), sz = pole ? 0.25 : rng->uniform(1.0, 4.5);
+    const double height = pole ? rng->uniform(3.0, 6.0) : rng->uniform(0.8, 2.0);
+    const double yaw = h + (pole ? 0.0 : rng->uniform(-0.3, 0.3));
+    const Eigen::Vector3d c = trajectory.interpolate(t) + side * lateral * r;
+    if (layout.clearance(c, c, s) < 0.5 * std::hypot(sx, sz) + 2.2) continue;
+    builder->addBox(c.x(), c.z(), kCameraHeight, sx, sz, height, yaw, 4.0 * lateral, object_style, /*pool=*/1);
+  }
+}
+
+/// Far backdrop: a ring of overlapping planes 60-180 m beyond the driven area, facing it, and on
+/// long drives, which leave the ring far behind, more 60-200 m beside the road.
+void addBackdrops(const Trajectory& trajectory, const StreetLayout& layout, Rng* rng, SceneBuilder* builder) {
+  const Eigen::Vector3d down(0, 1, 0);
+  TextureStyle far_style;
+  far_style.min_shape = 2.0;
+  far_style.max_shape = 40.0;
+  const int ring = 16;
+  for (int i = 0; i < ring; ++i) {
+    const double theta = 2.0 * kPi * i / ring + rng->uniform(-0.08, 0.08);
+    const double distance = layout.radius + rng->uniform(60.0, 180.0);
+    const double width = 2.0 * distance * std::tan(kPi / ring) * 1.3;
+    const double height = rng->uniform(20.0, 70.0);
+    const Eigen::Vector3d q = layout.centre + distance * Eigen::Vector3d(std::sin(theta), 0, std::cos(theta));
+    const Eigen::Vector3d u(std::cos(theta), 0, -std::sin(theta));
+    const Eigen::Vector3d origin = q - 0.5 * width * u + Eigen::Vector3d(0, kCameraHeight - height, 0);
+    builder->addPlane(origin, u, down, width, height, distance, far_style);
+  }
+  if (layout.radius <= 80.0) return;
+  for (double s = rng->uniform(0.0, 40.0); s < layout.s_max; s += rng->uniform(40.0, 80.0)) {
+    const int side = rng->uniform() < 0.5 ? -1 : 1;
+    const double t = trajectory.tMin() + s / kDriveSpeed;
+    const double h = trajectory.heading(t);
+    const Eigen::Vector3d f(std::sin(h), 0, std::cos(h)), r(std::cos(h), 0, -std::sin(h));
+    const double lateral = rng->uniform(60.0, 200.0), width = rng->uniform(60.0, 150.0);
+    const double height = rng->uniform(20.0, 70.0);
+    const Eigen::Vector3d a = trajectory.interpolate(t) + side * lateral * r - 0.5 * width * f;
+    if (layout.clearance(a, a + width * f, s) < 50.0) continue;
+    builder->addPlane(a + Eigen::Vector3d(0, kCameraHeight - height, 0), f, down, width, height, lateral, far_style,
+                      false, -1.0f, /*pool=*/2);
+  }
+}
+
+void buildStreetScene(const RenderSettings& settings, Scene* scene) {
+  const double duration = (settings.frames - 1) / settings.rate_hz;
+  const Trajectory trajectory(settings.preset, duration);
+  SceneBuilder builder(scene, settings.seed);
+  Rng rng(mixSeed(settings.seed, 0x5354524545ull));
+  const StreetLayout layout = streetLayout(trajectory, duration);
 
   // Ground: one huge rectangle; its 2048-texel texture repeats every ~51 m.
   TextureStyle ground_style;
@@ -419,83 +515,14 @@ void buildStreetScene(const RenderSettings& settings, Scene* scene) {
   ground_style.mean_hi = 110;
   ground_style.shape_contrast = 60;
   ground_style.shape_density = 0.6;
-  const double half = radius + 700.0;
-  builder.addPlane(Eigen::Vector3d(centre.x() - half, kCameraHeight, centre.z() - half), Eigen::Vector3d::UnitX(),
-                   Eigen::Vector3d::UnitZ(), 2 * half, 2 * half, 0.025 * kTexelsPerRadian, ground_style, false, 1.0f);
-
-  // Facades on both sides, parallel to the local heading, 6-15 m out, with gaps; any that would
-  // come within 4.5 m of the road (inside of a turn) are shortened or dropped.
-  const double s_max = kDriveSpeed * (trajectory.tMax() - trajectory.tMin());
-  TextureStyle facade_style;
-  for (int side = -1; side <= 1; side += 2) {
-    double s = rng.uniform(0.0, 5.0);
-    while (s < s_max) {
-      double length = rng.uniform(8.0, 25.0);
-      const double gap = rng.uniform() < 0.2 ? rng.uniform(12.0, 25.0) : rng.uniform(2.0, 10.0);
-      const double lateral = rng.uniform(6.0, 15.0), height = rng.uniform(4.0, 14.0);
-      for (int attempt = 0; attempt < 2; ++attempt, length *= 0.5) {
-        const double t = trajectory.tMin() + (s + 0.5 * length) / kDriveSpeed;
-        const double h = trajectory.heading(t);
-        const Eigen::Vector3d f(std::sin(h), 0, std::cos(h)), r(std::cos(h), 0, -std::sin(h));
-        const Eigen::Vector3d a = trajectory.interpolate(t) + side * lateral * r - 0.5 * length * f;
-        const Eigen::Vector3d b = a + length * f;
-        if (clearance(a, b, s + 0.5 * length) < 4.5) continue;
-        builder.addPlane(Eigen::Vector3d(a.x(), kCameraHeight - height, a.z()), f, down, length, height,
-                         1.5 * lateral, facade_style, false, -1.0f, /*pool=*/0);
-        break;
-      }
-      s += length + gap;
-    }
-  }
-
-  // Poles and boxes close to the road.
-  TextureStyle object_style;
-  object_style.max_shape = 40.0;
-  for (double s = rng.uniform(5.0, 15.0); s < s_max; s += rng.uniform(12.0, 30.0)) {
-    const int side = rng.uniform() < 0.5 ? -1 : 1;
-    const bool pole = rng.uniform() < 0.6;
-    const double t = trajectory.tMin() + s / kDriveSpeed;
-    const double h = trajectory.heading(t);
-    const Eigen::Vector3d r(std::cos(h), 0, -std::sin(h));
-    const double lateral = pole ? rng.uniform(3.0, 4.5) : rng.uniform(3.8, 5.5);
-    const double sx = pole ? 0.25 : rng.uniform(1.0, 2.5), sz = pole ? 0.25 : rng.uniform(1.0, 4.5);
-    const double height = pole ? rng.uniform(3.0, 6.0) : rng.uniform(0.8, 2.0);
-    const double yaw = h + (pole ? 0.0 : rng.uniform(-0.3, 0.3));
-    const Eigen::Vector3d c = trajectory.interpolate(t) + side * lateral * r;
-    if (clearance(c, c, s) < 0.5 * std::hypot(sx, sz) + 2.2) continue;
-    builder.addBox(c.x(), c.z(), kCameraHeight, sx, sz, height, yaw, 4.0 * lateral, object_style, /*pool=*/1);
-  }
-
-  // Far backdrop: a ring of overlapping planes 60-180 m beyond the driven area, facing it.
-  TextureStyle far_style;
-  far_style.min_shape = 2.0;
-  far_style.max_shape = 40.0;
-  const int ring = 16;
-  for (int i = 0; i < ring; ++i) {
-    const double theta = 2.0 * kPi * i / ring + rng.uniform(-0.08, 0.08);
-    const double distance = radius + rng.uniform(60.0, 180.0);
-    const double width = 2.0 * distance * std::tan(kPi / ring) * 1.3;
-    const double height = rng.uniform(20.0, 70.0);
-    const Eigen::Vector3d q = centre + distance * Eigen::Vector3d(std::sin(theta), 0, std::cos(theta));
-    const Eigen::Vector3d u(std::cos(theta), 0, -std::sin(theta));
-    const Eigen::Vector3d origin = q - 0.5 * width * u + Eigen::Vector3d(0, kCameraHeight - height, 0);
-    builder.addPlane(origin, u, down, width, height, distance, far_style);
-  }
-  // Long drives leave the ring far behind: there, backdrops also stand 60-200 m beside the road.
-  if (radius > 80.0) {
-    for (double s = rng.uniform(0.0, 40.0); s < s_max; s += rng.uniform(40.0, 80.0)) {
-      const int side = rng.uniform() < 0.5 ? -1 : 1;
-      const double t = trajectory.tMin() + s / kDriveSpeed;
-      const double h = trajectory.heading(t);
-      const Eigen::Vector3d f(std::sin(h), 0, std::cos(h)), r(std::cos(h), 0, -std::sin(h));
-      const double lateral = rng.uniform(60.0, 200.0), width = rng.uniform(60.0, 150.0);
-      const double height = rng.uniform(20.0, 70.0);
-      const Eigen::Vector3d a = trajectory.interpolate(t) + side * lateral * r - 0.5 * width * f;
-      if (clearance(a, a + width * f, s) < 50.0) continue;
-      builder.addPlane(a + Eigen::Vector3d(0, kCameraHeight - height, 0), f, down, width, height, lateral, far_style,
-                       false, -1.0f, /*pool=*/2);
-    }
-  }
+  const double half = layout.radius + 700.0;
+  builder.addPlane(Eigen::Vector3d(layout.centre.x() - half, kCameraHeight, layout.centre.z() - half),
+                   Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitZ(), 2 * half, 2 * half, 0.025 * kTexelsPerRadian,
+                   ground_style, false, 1.0f);
+  // Drawn from one generator in this order, so a seed gives the same scene.
+  addFacades(trajectory, layout, &rng, &builder);
+  addRoadsideObjects(trajectory, layout, &rng, &builder);
+  addBackdrops(trajectory, layout, &rng, &builder);
 
   // Sky: brightness gradient plus a weak cloud texture, far below FAST's threshold.
   scene->has_sky = true;

@@ -264,7 +264,7 @@ int run(int argc, char** argv) {
         eval::makeRunner(method, settings, base, refined_positions, matchFootprint(seq.camera), 1.0 / seq.camera.fx());
     summaries.push_back(eval::evaluateMethod(method, runner.get(), pairs));
     summaries.back().front_end = o.pairs.front_end;
-    if (o.pairs.front_end == "native") summaries.back().matching = findSetting("matching")->text(settings);
+    if (o.pairs.front_end == "native") summaries.back().matching = settings.front_end.matching;
   }
   // A gyro reads its bias and runs on its own clock: both are removed before it judges anything.
   ImuAlignment gyro_alignment;

@@ -15,7 +15,7 @@ NodeDiagnostics::Context subscribed() {
   c.subscribed = true;
   c.image_topic = "/cam/image_raw";
   c.info_topic = "/cam/camera_info";
-  c.backend_used = "cpu";
+  c.backend_used = visual_gyro::Backend::kCpu;
   return c;
 }
 

@@ -43,7 +43,7 @@ FrameOutput frameOf(const FrameResult& r, bool valid) {
   f.previous_stamp = 10.0;
   f.result = &r;
   f.valid = valid;
-  f.backend = "cpu";
+  f.backend = visual_gyro::Backend::kCpu;
   return f;
 }
 
@@ -51,8 +51,10 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
   const FrameResult r = turnResult();
   OutputSettings settings;
   settings.method = "vote";
-  const auto msg = om::rotationEstimate(frameOf(r, true), std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
+  const FrameOutput frame = frameOf(r, true);
+  const auto msg = om::rotationEstimate(frame, std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   EXPECT_TRUE(msg->valid);
+  EXPECT_EQ(msg->backend, "cpu");
   EXPECT_EQ(msg->status, "");
   EXPECT_NEAR(msg->dt, 0.1, 1e-12);
   EXPECT_NEAR(msg->yaw, 0.02, 1e-12);
@@ -61,7 +63,7 @@ TEST(OutputMessages, ValidEstimateCarriesRotationRateAndCovariance) {
   EXPECT_EQ(msg->matches, 400u);
   EXPECT_EQ(msg->tracked, 150u);
   EXPECT_TRUE(msg->half_resolution);
-  const auto imu = om::imu(*msg, settings);
+  const auto imu = om::imu(frame, std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   ASSERT_TRUE(imu);
   EXPECT_NEAR(imu->angular_velocity.y, 0.2, 1e-12);
   EXPECT_NEAR(imu->angular_velocity_covariance[4], 1e-4, 1e-12);
@@ -73,17 +75,19 @@ TEST(OutputMessages, InvalidEstimateIsTheIdentityAndItsImuFollowsThePolicy) {
   r.status = visual_gyro::FrameStatus::kTooFewMatches;
   r.reason = "5 (need 8)";
   OutputSettings settings;
-  const auto msg = om::rotationEstimate(frameOf(r, false), std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
+  const FrameOutput frame = frameOf(r, false);
+  const auto msg = om::rotationEstimate(frame, std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   EXPECT_FALSE(msg->valid);
   EXPECT_EQ(msg->status, "too_few_matches: 5 (need 8)");
   EXPECT_DOUBLE_EQ(msg->rotation.w, 1.0);
   EXPECT_DOUBLE_EQ(msg->yaw, 0.0);
   EXPECT_DOUBLE_EQ(msg->angular_velocity.y, 0.0);
   settings.publish_invalid = false;
-  EXPECT_FALSE(om::imu(*msg, settings)) << "an Imu for an invalid estimate without ~publish_invalid";
+  EXPECT_FALSE(om::imu(frame, std_msgs::Header(), Eigen::Matrix3d::Identity(), settings))
+      << "an Imu for an invalid estimate without ~publish_invalid";
   settings.publish_invalid = true;
   settings.invalid_variance = 7.0;
-  const auto imu = om::imu(*msg, settings);
+  const auto imu = om::imu(frame, std_msgs::Header(), Eigen::Matrix3d::Identity(), settings);
   ASSERT_TRUE(imu);
   EXPECT_DOUBLE_EQ(imu->angular_velocity.y, 0.0);
   EXPECT_DOUBLE_EQ(imu->angular_velocity_covariance[0], 7.0);
@@ -100,6 +104,32 @@ TEST(OutputMessages, OutputFrameRotatesRateAndCovariance) {
   EXPECT_NEAR(msg->angular_velocity_covariance[8], 2.0, 1e-12);
   EXPECT_NEAR(msg->angular_velocity_covariance[0], 3.0, 1e-12);
   EXPECT_NEAR(msg->yaw, 0.02, 1e-12) << "yaw stays about the optical y axis";
+}
+
+// The Imu is built from the frame's result, not from the RotationEstimate, yet carries exactly the
+// estimate's header, rate and rate covariance, in the output frame too.
+TEST(OutputMessages, ImuCarriesWhatTheRotationEstimateCarries) {
+  FrameResult r = turnResult();
+  r.angular_velocity = Eigen::Vector3d(0.13, -0.27, 0.05);
+  r.angular_velocity_covariance << 3e-4, 1e-5, -2e-5, 1e-5, 2e-4, 4e-6, -2e-5, 4e-6, 5e-4;
+  const Eigen::Matrix3d to_output =
+      (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(-1.1, Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
+  std_msgs::Header header;
+  header.stamp.fromSec(10.05);
+  header.frame_id = "body";
+  header.seq = 17;
+  const FrameOutput frame = frameOf(r, true);
+  const auto msg = om::rotationEstimate(frame, header, to_output, OutputSettings());
+  const auto imu = om::imu(frame, header, to_output, OutputSettings());
+  ASSERT_TRUE(imu);
+  EXPECT_EQ(imu->header.stamp, msg->header.stamp);
+  EXPECT_EQ(imu->header.frame_id, msg->header.frame_id);
+  EXPECT_EQ(imu->header.seq, msg->header.seq);
+  EXPECT_EQ(imu->angular_velocity.x, msg->angular_velocity.x);
+  EXPECT_EQ(imu->angular_velocity.y, msg->angular_velocity.y);
+  EXPECT_EQ(imu->angular_velocity.z, msg->angular_velocity.z);
+  for (int i = 0; i < 9; ++i) EXPECT_EQ(imu->angular_velocity_covariance[i], msg->angular_velocity_covariance[i]) << i;
 }
 
 }  // namespace
