@@ -183,7 +183,7 @@ TEST(CudaEstimator, GivesTheCpuFiguresOnSyntheticFrames) {
     const bearings::EstimatorRun cpu = bearings::runEstimator(createRotationEstimator(settings).get(), frames);
     settings.backend = BackendChoice::kCuda;
     auto estimator = createRotationEstimator(settings);
-    ASSERT_EQ(estimator->backendName(), "cuda");
+    ASSERT_EQ(estimator->backend(), visual_gyro::Backend::kCuda);
     const bearings::EstimatorRun gpu = bearings::runEstimator(estimator.get(), frames);
     const bearings::EstimatorComparison c = bearings::compareEstimatorRuns(cpu, gpu);
     std::string problems;

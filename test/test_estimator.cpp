@@ -464,7 +464,7 @@ TEST(PaperMethod, FindsTrueYawWithSixtyPercentOutliers) {
   EXPECT_NEAR(r.yaw, yaw, 0.15 * kDeg);
   EXPECT_EQ(r.hypotheses_drawn, 2000);
   EXPECT_GT(r.winning_votes, 5);
-  EXPECT_EQ(r.backend, "cpu");
+  EXPECT_EQ(r.backend, vg::Backend::kCpu);
 }
 
 TEST(VoteMethod, FullRotationWithSixtyPercentOutliers) {
@@ -1018,12 +1018,12 @@ TEST(Estimator, CudaRequestFallsBackToCpuWithOneWarning) {
   const bool usable = vg::cudaBackendUsable(&why);
   auto est = vg::createRotationEstimator(s, [&](const std::string& w) { warnings.push_back(w); });
   if (usable) {
-    EXPECT_EQ(est->backendName(), "cuda");
+    EXPECT_EQ(est->backend(), vg::Backend::kCuda);
     EXPECT_TRUE(warnings.empty());
     GTEST_SKIP() << "a CUDA device works here: the fallback cannot be exercised";
   }
   EXPECT_FALSE(why.empty());
-  EXPECT_EQ(est->backendName(), "cpu");
+  EXPECT_EQ(est->backend(), vg::Backend::kCpu);
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("CPU"), std::string::npos) << warnings[0];
 }
@@ -1033,7 +1033,7 @@ TEST(Estimator, AutoBackendPicksCudaExactlyWhenUsable) {
   s.backend = vg::BackendChoice::kAuto;
   std::vector<std::string> warnings;
   auto est = vg::createRotationEstimator(s, [&](const std::string& w) { warnings.push_back(w); });
-  EXPECT_EQ(est->backendName(), vg::cudaBackendUsable() ? "cuda" : "cpu");
+  EXPECT_EQ(est->backend(), vg::cudaBackendUsable() ? vg::Backend::kCuda : vg::Backend::kCpu);
   // auto without CUDA compiled in is silent; with CUDA compiled in but no device, one warning.
   EXPECT_LE(warnings.size(), 1u);
   if (!vg::cudaBackendCompiled()) EXPECT_TRUE(warnings.empty());

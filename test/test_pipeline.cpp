@@ -53,7 +53,7 @@ TEST(Pipeline, EstimatesTheRenderedRotationAndRate) {
   EXPECT_GE(second.times.total, second.times.detect + second.times.describe + second.times.match +
                                     second.times.align + second.times.estimate);
   EXPECT_GT(second.rotation.times.estimate, 0.0);
-  EXPECT_EQ(second.rotation.backend, "cpu");
+  EXPECT_EQ(second.rotation.backend, visual_gyro::Backend::kCpu);
   // Hundreds of sharp matches: the pair is not tried at half resolution.
   EXPECT_FALSE(second.half_resolution);
   EXPECT_GE(static_cast<int>(second.previous_bearings.size()), cpuSettings().front_end.half_resolution_below);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -38,6 +39,16 @@ vg::CameraModel camera() { return vg::test::cameraOf(scene()); }
 vg::VisualGyroSettings cpu() { return vg::test::cpuSettings(); }
 
 bool contains(const std::string& text, const std::string& needle) { return text.find(needle) != std::string::npos; }
+
+// The fields of a CSV line split at every comma (quoted fields are not read whole).
+std::vector<std::string> split(const std::string& line, char separator) {
+  std::vector<std::string> fields(1);
+  for (const char c : line) {
+    if (c == separator) fields.emplace_back();
+    else fields.back() += c;
+  }
+  return fields;
+}
 
 }  // namespace
 
@@ -287,7 +298,23 @@ TEST_F(EvaluateBadInput, OutOfRangeOptionsAreNamed) {
   out = evaluate(root_ + "/good --set min_dt=-1", &status);
   EXPECT_EQ(status, 2) << out;
   EXPECT_TRUE(contains(out, "min_dt")) << out;
-  out = evaluate(root_ + "/good --set max_rate_dps=5", &status);  // the views turn faster
+  const std::string csv = root_ + "/implausible.csv";
+  out = evaluate(root_ + "/good --set max_rate_dps=5 --csv " + csv, &status);  // the views turn faster
   EXPECT_EQ(status, 0) << out;
   EXPECT_EQ(vg::test::jsonNumber(out, "invalid"), 5.0) << out;
+  // As in the pipeline, an implausible rate is no prior for the next pair.
+  std::ifstream rows(csv);
+  std::string header, row;
+  ASSERT_TRUE(std::getline(rows, header));
+  const std::vector<std::string> columns = split(header, ',');
+  const size_t prior_used = std::find(columns.begin(), columns.end(), "prior_used") - columns.begin();
+  ASSERT_LT(prior_used, columns.size()) << header;
+  int judged = 0;
+  while (std::getline(rows, row)) {
+    const std::vector<std::string> fields = split(row, ',');
+    ASSERT_GT(fields.size(), prior_used) << row;
+    EXPECT_EQ(fields[prior_used], "0") << row;
+    ++judged;
+  }
+  EXPECT_EQ(judged, 5);
 }

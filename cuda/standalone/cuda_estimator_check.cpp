@@ -63,17 +63,17 @@ bool parseOptions(int argc, char** argv, EstimatorCheckOptions* o) {
 
 void printRun(const EstimatorRun& r) {
   char kernels[32] = "-";  // no kernels on the CPU
-  if (r.backend == "cuda") std::snprintf(kernels, sizeof kernels, "%.3f", medianOf(r.vote_device_ms));
+  if (r.backend == Backend::kCuda) std::snprintf(kernels, sizeof kernels, "%.3f", medianOf(r.vote_device_ms));
   std::printf("  %-5s frames %4d invalid %3d  rot RMSE %8.4f max %8.4f  yaw RMSE %8.4f deg  rate %8.3f deg/s"
               "  | ms median: estimate %7.3f vote %7.3f (kernels %s) host %7.3f\n",
-              r.backend.c_str(), r.accuracy.frames, r.accuracy.invalid, r.accuracy.rot_rmse_deg, r.accuracy.rot_max_deg,
+              backendName(r.backend), r.accuracy.frames, r.accuracy.invalid, r.accuracy.rot_rmse_deg, r.accuracy.rot_max_deg,
               r.accuracy.yaw_rmse_deg, r.accuracy.mean_rate_dps,
               medianOf(r.estimate_ms), medianOf(r.vote_ms), kernels, medianOf(r.refine_ms));
 }
 
 void writeRun(CsvWriter& csv, const std::string& file, const std::string& method, const EstimatorRun& r, int passed) {
   if (r.accuracy.frames == 0) return;
-  csv.row("%s,%s,%s,%d,%d,%g,%g,%g,%g,%g,%g,%g,%g,%d", csvField(file).c_str(), method.c_str(), r.backend.c_str(),
+  csv.row("%s,%s,%s,%d,%d,%g,%g,%g,%g,%g,%g,%g,%g,%d", csvField(file).c_str(), method.c_str(), backendName(r.backend),
           r.accuracy.frames, r.accuracy.invalid, r.accuracy.rot_rmse_deg, r.accuracy.rot_max_deg,
           r.accuracy.yaw_rmse_deg, r.accuracy.mean_rate_dps, medianOf(r.estimate_ms), medianOf(r.vote_ms),
           medianOf(r.vote_device_ms), medianOf(r.refine_ms), passed);
@@ -96,7 +96,7 @@ int checkMethod(const BearingInput& input, const std::string& method, const Esti
       settings.backend = BackendChoice::kCuda;
       std::string warning;
       auto estimator = createRotationEstimator(settings, [&](const std::string& w) { warning = w; });
-      if (estimator->backendName() != "cuda") throw std::runtime_error("CUDA backend fell back: " + warning);
+      if (estimator->backend() != Backend::kCuda) throw std::runtime_error("CUDA backend fell back: " + warning);
       gpu_run = runEstimator(estimator.get(), input.frames);
       printRun(gpu_run);
     }

@@ -30,7 +30,7 @@ constexpr double kDefaultFrameInterval = 0.1;
 
 /// One backend's run of the estimator over a sequence of frames.
 struct EstimatorRun {
-  std::string backend;  ///< backend that voted ("cpu" or "cuda")
+  Backend backend = Backend::kCpu;  ///< backend that voted
   /// The figures, as evaluate computes them (invalid estimates count as identity).
   metrics::AccuracySummary accuracy;
   std::vector<Eigen::Matrix3d> rotations;  ///< per frame (identity when invalid)
@@ -50,7 +50,7 @@ inline Eigen::Matrix3d truthOf(const BearingFrame& frame) {
 /// pipeline and evaluate do), scored by the metrics module (invalid = identity, as evaluate does).
 inline EstimatorRun runEstimator(RotationEstimator* estimator, const std::vector<BearingFrame>& frames) {
   EstimatorRun run;
-  run.backend = estimator->backendName();
+  run.backend = estimator->backend();
   PriorTracker prior;
   metrics::AccuracyAccumulator accuracy;
   std::vector<Eigen::Vector3d> prev, cur;

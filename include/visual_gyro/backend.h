@@ -27,8 +27,7 @@ inline bool parseBackend(const std::string& name, Backend* backend) {
   return false;
 }
 
-/// The backend an estimator reports by name (RotationEstimator::backendName(), which names its
-/// voter); throws std::invalid_argument for a name that is no backend.
+/// The backend a voter names (HypothesisVoter::name()); throws std::invalid_argument for a name that is no backend.
 inline Backend backendNamed(const std::string& name) {
   Backend backend = Backend::kCpu;
   if (!parseBackend(name, &backend)) throw std::invalid_argument("'" + name + "' is no backend (cpu, cuda)");

@@ -13,6 +13,7 @@
 #include <functional>
 #include <limits>
 
+#include "visual_gyro/backend.h"
 #include "visual_gyro/frame_status.h"
 #include "visual_gyro/geometry.h"
 #include "visual_gyro/setting_field.h"
@@ -225,7 +226,7 @@ struct RotationResult {
   int winning_votes = 0;         ///< votes of the winning cell
   int inliers = 0;               ///< matches consistent with the result (vote method; paper: 0)
   bool pure_rotation = false;    ///< vote method: the matches are explained by rotation alone
-  std::string backend;           ///< backend that voted: "cpu" or "cuda"
+  Backend backend = Backend::kCpu;  ///< backend that voted
   VoteDiagnostics diagnostics;   ///< vote method: how the result was reached
   EstimateTimes times;           ///< time of this estimate
 };
@@ -317,8 +318,8 @@ class RotationEstimator {
   /// Whether `part` runs.
   bool partEnabled(VotePart part) const { return (disabled_parts_ >> static_cast<int>(part) & 1u) == 0; }
   const EstimatorSettings& settings() const { return settings_; }
-  /// "cpu" or "cuda".
-  std::string backendName() const;
+  /// The backend that votes (backendName() prints it).
+  Backend backend() const { return backend_; }
   /// Frames estimated so far (frame f draws with seed + f).
   uint64_t frameCount() const { return frame_count_; }
 
@@ -336,6 +337,7 @@ class RotationEstimator {
   double match_footprint_ = 0.0;
   uint32_t disabled_parts_ = 0;
   std::unique_ptr<HypothesisVoter> voter_;
+  Backend backend_ = Backend::kCpu;  // voter_'s
   double vote_ms_ = 0.0;         // this frame's voter time so far (host clock)
   double vote_device_ms_ = 0.0;  // this frame's kernel time so far
   std::unique_ptr<VoteResult> votes_;  // reused: no per-frame allocation once the histogram has its size

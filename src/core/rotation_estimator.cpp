@@ -241,6 +241,7 @@ RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
   const std::string problem = validateSettings(settings_);
   if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
   if (!voter_) throw std::invalid_argument("RotationEstimator needs a voter");
+  backend_ = backendNamed(voter_->name());
 }
 
 RotationEstimator::~RotationEstimator() = default;
@@ -250,8 +251,6 @@ void RotationEstimator::setSettings(const EstimatorSettings& settings) {
   if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
   settings_ = settings;
 }
-
-std::string RotationEstimator::backendName() const { return voter_->name(); }
 
 RotationResult RotationEstimator::estimateSameFrame(const std::vector<Eigen::Vector3d>& previous,
                                                     const std::vector<Eigen::Vector3d>& current,
@@ -282,7 +281,7 @@ RotationResult RotationEstimator::estimate(const std::vector<Eigen::Vector3d>& p
     result.matches_used = static_cast<int>(previous.size());
   }
   ++frame_count_;
-  result.backend = voter_->name();
+  result.backend = backend_;
   result.times.estimate = elapsedMs(start);
   result.times.vote = vote_ms_;
   result.times.vote_device = vote_device_ms_;

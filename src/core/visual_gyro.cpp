@@ -136,7 +136,7 @@ VisualGyro::VisualGyro(const CameraModel& camera, const VisualGyroSettings& sett
   checkCamera(camera);
   checkSettings(settings);
   estimator_ = createRotationEstimator(settings.estimator, warn);
-  backend_ = backendNamed(estimator_->backendName());
+  backend_ = estimator_->backend();
   estimator_->setRefinedPositions(settings.front_end.subpixel_refinement);
   estimator_->setMatchFootprint(matchFootprint(camera_));
 }

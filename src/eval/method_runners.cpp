@@ -19,12 +19,13 @@ double elapsedMs(std::chrono::steady_clock::time_point start) {
 /// valid rotation vector, rescaled to this interval; none after an invalid estimate).
 class OwnEstimatorRunner : public MethodRunner {
  public:
-  OwnEstimatorRunner(const EstimatorSettings& settings, bool refined_positions, double match_footprint,
-                     uint32_t disabled_parts)
+  OwnEstimatorRunner(const EstimatorSettings& settings, const VisualGyroSettings& pipeline, bool refined_positions,
+                     double match_footprint, uint32_t disabled_parts)
       : estimator_(createRotationEstimator(settings, [](const std::string& w) {
           std::cerr << "warning: " << w << "\n";
         })),
-        backend_(backendNamed(estimator_->backendName())) {
+        backend_(estimator_->backend()),
+        pipeline_(pipeline) {
     estimator_->setDisabledParts(disabled_parts);
     estimator_->setRefinedPositions(refined_positions);
     estimator_->setMatchFootprint(match_footprint);
@@ -39,7 +40,10 @@ class OwnEstimatorRunner : public MethodRunner {
     out.vote_ms = r.times.vote;
     out.vote_device_ms = backend_ == Backend::kCuda ? r.times.vote_device : std::numeric_limits<double>::quiet_NaN();
     out.refine_ms = r.times.refine;
-    prior_.update(r, pair.dt);
+    // As in VisualGyro, an implausible rate is no prior for the next pair (PlausibilityRunner
+    // reports it).
+    const bool implausible = r.valid() && !checkRatePlausible(r.rotation_vector, pair.dt, pipeline_).empty();
+    prior_.update(implausible ? RotationResult() : r, pair.dt);
     out.valid = r.valid();
     out.status = r.status;
     if (!out.valid) out.error = std::string(frameStatusName(r.status)) + ": " + r.reason;
@@ -60,6 +64,7 @@ class OwnEstimatorRunner : public MethodRunner {
  private:
   std::unique_ptr<RotationEstimator> estimator_;
   Backend backend_;  // estimator_'s voter, fixed at its creation
+  VisualGyroSettings pipeline_;  // its max_rate_dps
   PriorTracker prior_;  // the same prior VisualGyro gives its estimator
 };
 
@@ -215,7 +220,7 @@ std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const Visual
   if (ablation) estimator.method = EstimationMethod::kVote;
   const bool own = ablation || parseMethod(method, &estimator.method);
   if (own) {
-    runner = std::make_unique<OwnEstimatorRunner>(estimator, refined_positions, match_footprint, disabled);
+    runner = std::make_unique<OwnEstimatorRunner>(estimator, settings, refined_positions, match_footprint, disabled);
   } else {
     runner = std::make_unique<BaselineRunner>(method, baseline);
   }
