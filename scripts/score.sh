@@ -4,7 +4,7 @@
 # their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches, both at
 # once, frames downscaled to a quarter); and rendered scenes (near structure, over four textures; a
 # dim blurred room, a blurred 1280 x 720 room, a hand-held room, the same through a phone-like
-# rolling shutter). Each case runs with estimator seeds 1-3; the
+# rolling shutter, also at half the frame rate). Each case runs with estimator seeds 1-3; the
 # per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
 # last line of JSON (also out/score/score.json).
 #
@@ -113,6 +113,7 @@ render dim_blur3_jpeg75 --preset dim --blur 3 --jpeg 75
 render dim_blur15_720p --preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900
 render handheld --preset handheld
 render handheld_rs --preset handheld_rs
+render handheld_rs_15hz --preset handheld_rs --rate 15
 
 # 2. The shared real sequences at their own rate.
 for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake; do
@@ -162,6 +163,8 @@ run_case dim_blur15_720p "${OUT}/rendered/dim_blur15_720p" \
 run_case handheld "${OUT}/rendered/handheld" "rendered hand-held room, 30 Hz"
 run_case handheld_rs "${OUT}/rendered/handheld_rs" \
   "rendered hand-held room through a rolling shutter (28 ms read-out; stamps and poses the middle row's), 30 Hz"
+run_case handheld_rs_15hz "${OUT}/rendered/handheld_rs_15hz" \
+  "the same hand-held motion through the same rolling shutter at 15 Hz (twice the motion a pair)"
 
 # 7. Summary.
 machine="$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -1), $(nproc) cores"

@@ -139,43 +139,62 @@ const std::vector<cv::Mat>& turningViews(const vg::RenderSettings& scene) {
   return views;
 }
 
-/// Statuses of the pipeline over the views, with `camera`.
-std::vector<vg::FrameStatus> statuses(vg::VisualGyro* gyro, const std::vector<cv::Mat>& views, double t0) {
-  std::vector<vg::FrameStatus> out;
-  for (size_t k = 0; k < views.size(); ++k) out.push_back(gyro->processFrame(views[k], t0 + 0.1 * k).status);
+/// The pipeline's results over the views.
+std::vector<vg::FrameResult> results(vg::VisualGyro* gyro, const std::vector<cv::Mat>& views, double t0) {
+  std::vector<vg::FrameResult> out;
+  for (size_t k = 0; k < views.size(); ++k) out.push_back(gyro->processFrame(views[k], t0 + 0.1 * k));
   return out;
 }
 
 }  // namespace
 
-TEST(CalibrationFit, PipelineInvalidatesEstimatesWhileTheCalibrationDoesNotFit) {
+TEST(CalibrationFit, PipelineInflatesTheCovarianceWhileTheCalibrationDoesNotFit) {
   const vg::RenderSettings scene = vg::test::handheldRoom(320, 240, 250.0);
   const std::vector<cv::Mat>& views = turningViews(scene);
-  // The right camera: every estimate valid, never a mismatch.
+  // The right camera: never a mismatch.
   vg::VisualGyro right(vg::test::cameraOf(scene), vg::test::cpuSettings());
-  for (const vg::FrameStatus s : statuses(&right, views, 0.0)) EXPECT_NE(s, vg::FrameStatus::kCalibrationMismatch);
+  for (const vg::FrameResult& r : results(&right, views, 0.0)) EXPECT_TRUE(r.calibration_mismatch.empty());
   // A plumb_bob k1 = 0.3 the images do not have (plausible by itself: calibrationProblem passes
-  // it). The first kFitWindowFrames estimates are valid; from then on, invalid.
+  // it). Every estimate is valid; from the first full window on, each says why the calibration does
+  // not fit and its covariance is inflated.
   const vg::CameraModel wrong(250.0, 250.0, 159.5, 119.5, 320, 240, vg::DistortionModel::kPlumbBob, {0.3, 0.0, 0.0, 0.0});
   ASSERT_EQ(vg::calibrationProblem(wrong), "");
   vg::VisualGyro gyro(wrong, vg::test::cpuSettings());
-  std::vector<vg::FrameStatus> got = statuses(&gyro, views, 0.0);
+  const std::vector<vg::FrameResult> got = results(&gyro, views, 0.0);
   int mismatched = 0;
   for (size_t k = 1; k < got.size(); ++k) {
-    if (k <= vg::kFitWindowFrames - 1) EXPECT_EQ(got[k], vg::FrameStatus::kValid) << "frame " << k;
-    mismatched += got[k] == vg::FrameStatus::kCalibrationMismatch;
+    EXPECT_EQ(got[k].status, vg::FrameStatus::kValid) << "frame " << k;
+    if (k <= vg::kFitWindowFrames - 1) EXPECT_TRUE(got[k].calibration_mismatch.empty()) << "frame " << k;
+    mismatched += !got[k].calibration_mismatch.empty();
   }
   EXPECT_GE(mismatched, static_cast<int>(got.size() - vg::kFitWindowFrames - 2));
-  const vg::FrameResult last = gyro.processFrame(views[2], 4.0);  // the last view was views[1]
-  EXPECT_EQ(last.status, vg::FrameStatus::kCalibrationMismatch);
-  EXPECT_FALSE(last.hasEstimate());
+  const vg::FrameResult& last = got.back();
   EXPECT_GT(last.residual_correlation, vg::kFitMismatchCorrelation);
-  EXPECT_NE(last.reason.find("may not fit the images"), std::string::npos) << last.reason;
-  // A time jump (reset) keeps the verdict; a new camera model starts it afresh.
-  gyro.reset();
-  got = statuses(&gyro, views, 20.0);
-  EXPECT_EQ(got[1], vg::FrameStatus::kCalibrationMismatch);
+  EXPECT_NE(last.calibration_mismatch.find("may not fit the images"), std::string::npos) << last.calibration_mismatch;
+  // The same matches through an estimator alone: the covariance without the check.
+  auto estimator = vg::createRotationEstimator(vg::test::cpuSettings().estimator);
+  estimator->setRefinedPositions(vg::test::cpuSettings().front_end.subpixel_refinement);
+  estimator->setMatchFootprint(vg::matchFootprint(wrong));
+  const vg::RotationResult alone = estimator->estimate(last.previous_bearings, last.current_bearings);
+  ASSERT_TRUE(alone.valid());
+  // At least (1 + 0.5) / (1 - 0.5) = 3 from a median correlation of kFitMismatchCorrelation; the
+  // estimator alone draws other triples (seed, no prior), so its covariance differs a little.
+  const double ratio = last.rotation.covariance.trace() / alone.covariance.trace();
+  EXPECT_GE(ratio, 2.5) << "covariance not inflated";
+  EXPECT_LE(ratio, 1.2 * vg::kMaxFitInflation);
+  // A new camera model starts the check afresh.
   gyro.setCamera(vg::test::cameraOf(scene));
-  got = statuses(&gyro, views, 30.0);
-  for (size_t k = 1; k < got.size(); ++k) EXPECT_EQ(got[k], vg::FrameStatus::kValid) << "frame " << k;
+  for (const vg::FrameResult& r : results(&gyro, views, 30.0)) EXPECT_TRUE(r.calibration_mismatch.empty());
+}
+
+TEST(CalibrationFitMonitor, InflationIsTheEffectiveSampleSizeRatio) {
+  vg::CalibrationFitMonitor monitor;
+  for (size_t k = 0; k < vg::kFitWindowFrames; ++k) monitor.add(0.6);
+  EXPECT_NEAR(monitor.covarianceInflation(), 1.6 / 0.4, 1e-12);
+  vg::CalibrationFitMonitor strong;
+  for (size_t k = 0; k < vg::kFitWindowFrames; ++k) strong.add(0.99);
+  EXPECT_DOUBLE_EQ(strong.covarianceInflation(), vg::kMaxFitInflation);
+  vg::CalibrationFitMonitor fits;
+  for (size_t k = 0; k < vg::kFitWindowFrames; ++k) fits.add(0.2);
+  EXPECT_DOUBLE_EQ(fits.covarianceInflation(), 1.0);
 }

@@ -46,6 +46,8 @@ constexpr size_t kFitWindowFrames = 20;
 /// estimated motion absorbs hardly show: kitti_turn with the principal point 15 % off centre
 /// reaches 0.39, with a focal length 20 % off 0.15 (most of their estimates beyond 3 sigma).
 constexpr double kFitMismatchCorrelation = 0.5;
+/// The most covarianceInflation() multiplies a covariance by (a median correlation of 0.905).
+constexpr double kMaxFitInflation = 20.0;
 
 /// The residual of one match under the motion (rotation R with b_prev ~ R b_cur, unit translation
 /// t in the previous frame, zero for a pure rotation), as a vector [rad]: the distance of b_prev
@@ -88,6 +90,12 @@ class CalibrationFitMonitor {
   size_t frames() const { return window_.size(); }
   /// Median of the window (NaN while empty).
   double median() const;
+  /// The factor by which an estimate's covariance is multiplied while the calibration does not fit,
+  /// 1 otherwise: (1 + rho) / (1 - rho) with rho the window's median correlation, at most
+  /// kMaxFitInflation. Matches whose errors correlate between neighbours by rho carry about
+  /// n (1 - rho) / (1 + rho) independent ones' worth (the effective sample size of a first-order
+  /// autoregressive series).
+  double covarianceInflation() const;
   /// Why the calibration does not fit, with the numbers (for the frames' status and /diagnostics).
   std::string describe() const;
   /// Forgets every frame (a new camera model).

@@ -27,9 +27,6 @@ enum class FrameStatus {
   kTooFewInliers,     ///< the result explains fewer than min_inlier_ratio of the matches, or its
                       ///< inliers cover fewer than kMinDescriptorAreas descriptor patches
   kImplausibleRate,   ///< the rate exceeds max_rate_dps
-  /// The camera model does not fit the images: the residuals of neighbouring matches have agreed
-  /// over the last frames (CalibrationFitMonitor); every estimate is invalid until they do not.
-  kCalibrationMismatch,
   kEstimatorFailed,   ///< the backend failed mid-stream (e.g. a lost GPU)
 };
 

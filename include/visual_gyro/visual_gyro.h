@@ -85,8 +85,12 @@ struct FrameResult {
   bool half_resolution = false;
   /// Correlation of the estimate's residuals between neighbouring matches (ResidualCorrelation;
   /// vote method, NaN otherwise or when too few matches): near 0 when the camera model fits the
-  /// images. Over the last kFitWindowFrames frames it decides kCalibrationMismatch.
+  /// images. Over the last kFitWindowFrames frames it decides calibration_mismatch.
   double residual_correlation = std::numeric_limits<double>::quiet_NaN();
+  /// Non-empty (why, with the numbers) while the residuals of neighbouring matches say the camera
+  /// model does not fit the images (CalibrationFitMonitor): the estimate's covariance is then
+  /// multiplied by CalibrationFitMonitor::covarianceInflation().
+  std::string calibration_mismatch;
   /// Matched pixels (previous, current) and their bearings, in match order; what the estimator saw.
   std::vector<cv::Point2f> previous_pixels, current_pixels;
   std::vector<Eigen::Vector3d> previous_bearings, current_bearings;
@@ -166,9 +170,9 @@ class VisualGyro {
   /// less than min_dt after it, is rejected without touching the state (skipped); an image without
   /// texture (grey-level standard deviation below kMinTextureStdDev, or no corner found) is
   /// flagged kNoTexture, one identical to the previous one frozen (both keep the previous image);
-  /// an estimated rate above max_rate_dps is invalid; so is every estimate while the calibration
-  /// does not fit the images (kCalibrationMismatch: CalibrationFitMonitor over the vote method's
-  /// estimates; the rotation still serves as the next frame's prior).
+  /// an estimated rate above max_rate_dps is invalid; while the calibration does not fit the images
+  /// (CalibrationFitMonitor over the vote method's estimates) each estimate's covariance is
+  /// inflated and FrameResult::calibration_mismatch says why.
   FrameResult processFrame(const cv::Mat& gray, double stamp);
 
   /// Forgets the previous frame (after a time jump or a camera change). The calibration check's

@@ -108,6 +108,12 @@ double CalibrationFitMonitor::median() const {
   return *mid;
 }
 
+double CalibrationFitMonitor::covarianceInflation() const {
+  if (!mismatch()) return 1.0;
+  const double rho = median();
+  return std::min(kMaxFitInflation, (1.0 + rho) / std::max(1e-9, 1.0 - rho));
+}
+
 std::string CalibrationFitMonitor::describe() const {
   const double rho = median();
   // Residual = shared part + independent part; their correlation rho is the shared part's share
@@ -118,7 +124,9 @@ std::string CalibrationFitMonitor::describe() const {
   out << "residuals of neighbouring matches agree (correlation " << rho << " over the last " << window_.size()
       << " frames; " << kFitMismatchCorrelation
       << " and more is not pixel noise): a systematic error " << ratio
-      << " times the pixel noise; camera_info's distortion or intrinsics may not fit the images";
+      << " times the pixel noise; camera_info's distortion or intrinsics may not fit the images (or a rolling "
+         "shutter distorts them); covariance times "
+      << covarianceInflation();
   return out.str();
 }
 

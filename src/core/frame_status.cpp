@@ -21,7 +21,6 @@ const char* frameStatusName(FrameStatus status) {
     case FrameStatus::kFlatHistogram: return "flat_histogram";
     case FrameStatus::kTooFewInliers: return "too_few_inliers";
     case FrameStatus::kImplausibleRate: return "implausible_rate";
-    case FrameStatus::kCalibrationMismatch: return "calibration_mismatch";
     case FrameStatus::kEstimatorFailed: return "estimator_failed";
   }
   return "unknown";

@@ -574,7 +574,12 @@ void VisualGyro::checkCalibrationFit(FrameResult* result) {
       result->previous_bearings, result->current_bearings, rotation.rotation, rotation.translation,
       1.0 / camera_.fx(), settings_.estimator.inlier_threshold_deg * kDegToRad);
   calibration_fit_.add(result->residual_correlation);
-  if (calibration_fit_.mismatch()) rotation.invalidate(FrameStatus::kCalibrationMismatch, calibration_fit_.describe());
+  // Neither a rolling shutter nor a calibration that does not fit the images can be told apart by
+  // the residuals alone, and under a rolling shutter the estimates stay good: the estimate is kept
+  // with the covariance its correlated errors allow.
+  if (!calibration_fit_.mismatch()) return;
+  rotation.covariance *= calibration_fit_.covarianceInflation();
+  result->calibration_mismatch = calibration_fit_.describe();
 }
 
 }  // namespace visual_gyro

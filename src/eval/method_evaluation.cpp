@@ -219,7 +219,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   if (std::isfinite(s.residual_correlation_median)) {
     out << "   calibration fit residual correlation of neighbouring matches: median "
         << fmt(s.residual_correlation_median, 2) << ", largest " << kFitWindowFrames << "-frame median "
-        << fmt(s.residual_correlation_window_max, 2) << " (calibration_mismatch from "
+        << fmt(s.residual_correlation_window_max, 2) << " (covariance inflated from "
         << fmt(kFitMismatchCorrelation, 2) << ")\n";
   }
   if (!s.first_error.empty()) out << "   first invalid   " << s.first_error << "\n";

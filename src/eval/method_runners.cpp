@@ -101,8 +101,9 @@ class BaselineRunner : public MethodRunner {
 };
 
 /// Applies the pipeline's plausibility rules to a method: no estimate on a frozen or textureless
-/// image, a rate above max_rate_dps is invalid and, when `judge_calibration` (vote), so is every
-/// estimate while the calibration does not fit, exactly as VisualGyro reports them.
+/// image, a rate above max_rate_dps is invalid and, when `judge_calibration` (vote), every
+/// estimate's covariance is inflated while the calibration does not fit, exactly as VisualGyro
+/// reports them.
 class PlausibilityRunner : public MethodRunner {
  public:
   PlausibilityRunner(std::unique_ptr<MethodRunner> inner, const VisualGyroSettings& settings,
@@ -142,13 +143,7 @@ class PlausibilityRunner : public MethodRunner {
         correlation_.compute(pair.previous, pair.current, out->rotation, out->translation, pixel_angle_rad_,
                              settings_.estimator.inlier_threshold_deg * kDegToRad);
     fit_.add(out->residual_correlation);
-    if (!fit_.mismatch()) return;
-    out->valid = false;
-    out->status = FrameStatus::kCalibrationMismatch;
-    out->error = std::string(frameStatusName(out->status)) + ": " + fit_.describe();
-    out->rotation.setIdentity();
-    out->rotation_vector.setZero();
-    out->translation.setZero();
+    if (out->has_covariance) out->covariance *= fit_.covarianceInflation();
   }
 
   std::unique_ptr<MethodRunner> inner_;

@@ -23,7 +23,7 @@ struct MethodEstimate {
   bool valid = false;
   /// kValid when valid; otherwise why not: the estimator's status (vote, paper), the baseline's
   /// (BaselineResult::status), or the pipeline's rules (the pair's image status for a frozen or
-  /// textureless image, kImplausibleRate, kCalibrationMismatch). Callers decide by this.
+  /// textureless image, kImplausibleRate). Callers decide by this.
   FrameStatus status = FrameStatus::kNotEstimated;
   /// Why not valid, for people: the status name and reason (a baseline's own text); "" when
   /// valid.
@@ -75,8 +75,9 @@ std::string methodProblem(const std::string& method);
 /// and the angle their descriptor patch spans [rad] (RotationEstimator::setMatchFootprint,
 /// matchFootprint() of the sequence's camera); else the baseline), wrapped so that it follows the
 /// pipeline's plausibility rules (no estimate on a frozen or textureless image; a rate above
-/// max_rate_dps is invalid; vote: invalid while the calibration does not fit, judged from the
-/// matches' bearings with `pixel_angle_rad` radians per pixel) exactly as VisualGyro does.
+/// max_rate_dps is invalid; vote: the covariance inflated while the calibration does not fit,
+/// judged from the matches' bearings with `pixel_angle_rad` radians per pixel) exactly as
+/// VisualGyro does.
 std::unique_ptr<MethodRunner> makeRunner(const std::string& method, const VisualGyroSettings& settings,
                                          const BaselineSettings& baseline, bool refined_positions,
                                          double match_footprint, double pixel_angle_rad);

@@ -280,7 +280,7 @@ void NodeDiagnostics::summarize(diagnostic_updater::DiagnosticStatusWrapper& sta
     status.summaryf(Level::WARN, "no texture in %llu of %llu image(s) (last: %s), no output from them",
                     ull(w.no_texture), ull(w.images), last_no_texture_reason_.c_str());
   } else if (!calibration_mismatch_.empty()) {
-    status.summary(Level::WARN, "calibration does not fit the images, estimates invalid: " + calibration_mismatch_);
+    status.summary(Level::WARN, "calibration does not fit the images, covariance inflated: " + calibration_mismatch_);
   } else if (w.skipped > 0) {
     status.summaryf(Level::WARN, "%llu of %llu frame(s) skipped (last: %s), %.1f Hz out",
                     ull(w.skipped), ull(w.images), last_skip_reason_.c_str(), valid_hz);

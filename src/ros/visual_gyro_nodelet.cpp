@@ -331,12 +331,14 @@ void VisualGyroNodelet::processImage(const sensor_msgs::Image& image, const Came
 }
 
 void VisualGyroNodelet::reportCalibrationFit(const FrameResult& result) {
-  // The verdict lasts until an estimate is valid again (or the camera changes); logged once.
-  if (result.status == FrameStatus::kCalibrationMismatch) {
+  // The verdict lasts until an estimate's residuals no longer show it (or the camera changes);
+  // logged once.
+  if (!result.calibration_mismatch.empty()) {
     if (health_.calibrationMismatch().empty()) {
-      NODELET_WARN("visual_gyro: calibration does not fit the images, estimates invalid: %s", result.reason.c_str());
+      NODELET_WARN("visual_gyro: calibration does not fit the images, covariance inflated: %s",
+                   result.calibration_mismatch.c_str());
     }
-    health_.setCalibrationMismatch(result.reason);
+    health_.setCalibrationMismatch(result.calibration_mismatch);
   } else if (result.hasEstimate()) {
     health_.setCalibrationMismatch("");
   }

@@ -220,11 +220,11 @@ TEST(NodeDiagnostics, CalibrationMismatchWarnsUntilCleared) {
   for (int k = 0; k < 10; ++k) {
     d.imageIn(100.0 + 0.1 * k);
     d.processed();
-    d.estimatePublished(false, "calibration_mismatch: ...", 5.0, 500, 0.3);
+    d.estimatePublished(true, "", 5.0, 500, 0.3);
   }
   auto s = fill(&d, 1.0);
   EXPECT_EQ(s.level, Level::WARN);
-  EXPECT_EQ(s.message, "calibration does not fit the images, estimates invalid: " + why);
+  EXPECT_EQ(s.message, "calibration does not fit the images, covariance inflated: " + why);
   EXPECT_EQ(value(s, "Calibration mismatch"), why);
   d.setCalibrationMismatch("");
   for (int k = 0; k < 10; ++k) {

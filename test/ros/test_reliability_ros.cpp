@@ -303,9 +303,9 @@ TEST(ReliabilityRos, ImplausibleCalibrationIsAnErrorWithNoOutput) {
 }
 
 // A calibration plausible by itself (plumb_bob k1 = 0.3) that the rendered images do not have: once
-// the calibration check has seen enough frames, estimates are invalid (no Imu) and /diagnostics
-// names camera_info; a fitting camera_info brings valid estimates back.
-TEST(ReliabilityRos, CalibrationThatDoesNotFitTheImagesWarnsAndInvalidates) {
+// the calibration check has seen enough frames, /diagnostics names camera_info and the estimates,
+// still published, carry an inflated covariance; a fitting camera_info clears the warning.
+TEST(ReliabilityRos, CalibrationThatDoesNotFitTheImagesWarnsAndInflates) {
   Harness& h = *g_harness;
   h.clear();
   sensor_msgs::CameraInfo info = h.info();
@@ -317,19 +317,10 @@ TEST(ReliabilityRos, CalibrationThatDoesNotFitTheImagesWarnsAndInvalidates) {
   h.settle();
   const auto rotations = h.rotations();
   ASSERT_EQ(rotations.size(), 29u);
-  size_t valid = 0, mismatched = 0;
-  for (const auto& r : rotations) {
-    valid += r.valid;
-    mismatched += r.status.rfind("calibration_mismatch: ", 0) == 0;
-  }
-  EXPECT_EQ(valid, visual_gyro::kFitWindowFrames - 1) << "valid until the check has judged a full window";
-  EXPECT_EQ(mismatched, rotations.size() - valid);
-  EXPECT_FALSE(rotations.back().valid);
-  EXPECT_NE(rotations.back().status.find("camera_info's distortion or intrinsics may not fit the images"),
-            std::string::npos)
-      << rotations.back().status;
-  EXPECT_EQ(h.imus().size(), valid) << "an Imu from an invalidated estimate";
-  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "calibration does not fit the images, estimates invalid", 3.0));
+  for (const auto& r : rotations) EXPECT_TRUE(r.valid) << r.status;
+  EXPECT_EQ(h.imus().size(), rotations.size());
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "camera_info's distortion or intrinsics may not fit the images", 3.0));
+  EXPECT_TRUE(h.waitDiagnostic(Level::WARN, "calibration does not fit the images, covariance inflated", 3.0));
   EXPECT_EQ(h.logLines("calibration does not fit the images"), 1) << "logged more than once";
   // The camera's own calibration: the check starts afresh, estimates are valid.
   h.clear();
