@@ -31,6 +31,7 @@ import os
 import re
 import sys
 from collections import defaultdict
+from functools import lru_cache
 
 import numpy as np
 
@@ -46,6 +47,7 @@ def is_ablation(method):
     return method.startswith(ABLATION_PREFIX)
 
 
+@lru_cache(maxsize=None)
 def metrics_constant(name, header=METRICS_HEADER):
     """A constant as metrics.h defines it (one source of truth)."""
     with open(header) as f:
@@ -189,6 +191,7 @@ def ablation_rows(methods, per_case, per_method, spread):
     of the covariance), when removing it makes more cases over-confident."""
     vote = per_method.get(REFERENCE_METHOD, {}).get("geomean", math.nan)
     margin = spread["relative"] * vote if math.isfinite(spread["relative"]) else 0.0
+    reference_overconfident = len(overconfident_cases(per_case, REFERENCE_METHOD))
     rows = []
     for m in methods:
         if not is_ablation(m):
@@ -200,7 +203,7 @@ def ablation_rows(methods, per_case, per_method, spread):
         g = per_method[m]["geomean"]
         overconfident = overconfident_cases(per_case, m)
         verdict = ("pays" if g - vote > margin else "costs" if vote - g > margin else "within the spread")
-        if verdict == "within the spread" and len(overconfident) > len(overconfident_cases(per_case, REFERENCE_METHOD)):
+        if verdict == "within the spread" and len(overconfident) > reference_overconfident:
             verdict = "pays (covariance)"
         rows.append({"part": m[len(ABLATION_PREFIX):], "geomean": g, "worst": per_method[m]["worst"],
                      "vs_vote": over_cases(vs_vote), "nees_mean": float(np.mean(nees)) if nees else math.nan,
@@ -234,7 +237,7 @@ def ablation_markdown(rows, per_case, per_method):
     return lines + [""]
 
 
-def write_markdown(path, header, cases, methods, per_case, ratios, per_method, spread, notes):
+def write_markdown(path, header, cases, methods, per_case, ratios, per_method, spread, notes, ablation):
     lines = ["# make score", "", *header, ""]
     lines += ["## Per method: RMSE over the best other method's, per case", "",
               "| method | geometric mean | worst | worst case |", "|---|---|---|---|"]
@@ -245,7 +248,7 @@ def write_markdown(path, header, cases, methods, per_case, ratios, per_method, s
               f"seed alone {', '.join(fmt(g) for g in spread['geomean_per_seed']) or '-'}, (max - min) / pooled "
               f"{fmt(spread['relative'])}; per case (max - min) / mean of the seeds' RMSE, geometric mean over cases "
               f"{fmt(spread['per_case_rmse_geomean'])}.", ""]
-    lines += ablation_markdown(ablation_rows(methods, per_case, per_method, spread), per_case, per_method)
+    lines += ablation_markdown(ablation, per_case, per_method)
     lines += ["## Ratio to the best other method, per case", "",
               "| case | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
     for c in cases:
@@ -343,11 +346,13 @@ def main():
     ratios = {c: ratios_to_best_peer({m: f["rmse"] for m, f in per_case[c].items()}) for c in cases}
     per_method = {m: over_cases({c: ratios[c].get(m, math.nan) for c in cases}) for m in methods}
     spread = seed_spread(per_case, seeds)
+    ablation = ablation_rows(methods, per_case, per_method, spread)
 
     os.makedirs(args.out, exist_ok=True)
     header = [f"Machine: {args.machine}. Date: {args.date}.", f"{len(cases)} cases, methods {', '.join(methods)}, "
               f"estimator seeds {', '.join(seeds)} pooled.", *args.note]
-    write_markdown(os.path.join(args.out, "score.md"), header, cases, methods, per_case, ratios, per_method, spread, notes)
+    write_markdown(os.path.join(args.out, "score.md"), header, cases, methods, per_case, ratios, per_method, spread, notes,
+                   ablation)
     write_csv(os.path.join(args.out, "score.csv"), cases, methods, per_case, ratios)
     write_plot(os.path.join(args.out, "score.png"), cases, [m for m in methods if not is_ablation(m)], ratios,
                f"make score: {len(cases)} cases, seeds {','.join(seeds)} ({args.machine}, {args.date})")
@@ -361,7 +366,6 @@ def main():
                         "geomean_per_seed": [clean(g) for g in spread["geomean_per_seed"]],
                         "per_case_rmse_geomean": clean(spread["per_case_rmse_geomean"])},
     }
-    ablation = ablation_rows(methods, per_case, per_method, spread)
     if ablation:
         summary["ablation"] = {r["part"]: {"geomean": clean(r["geomean"]), "worst": clean(r["worst"]),
                                            "vs_vote_geomean": clean(r["vs_vote"]["geomean"]),
