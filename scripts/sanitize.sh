@@ -28,7 +28,8 @@ echo "[sanitize] built in $(($(date +%s) - start)) s"
 # ASan/LSan reports go to files (one per process), so that a report in a child process whose output
 # a test swallows still fails the run; UBSan writes to stderr whatever log_path says. A distinct
 # exit code (86) keeps a sanitizer's exit apart from the commands' own 1 and 2.
-common="log_path=${reports}/report:exitcode=86"
+# log_exe_name: the report's file name says which program (report.<program>.<pid>).
+common="log_path=${reports}/report:log_exe_name=1:exitcode=86"
 export ASAN_OPTIONS="${common}:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1"
 export UBSAN_OPTIONS="${common}:print_stacktrace=1:halt_on_error=1"
 export LSAN_OPTIONS="suppressions=${REPO_DIR}/test/sanitizer/lsan.supp:print_suppressions=0"
@@ -96,7 +97,10 @@ report_files=("${reports}"/report*)
 if ((${#report_files[@]} > 0)); then
   for f in "${report_files[@]}"; do
     echo "FAILED  sanitizer report ${f}:"
-    grep -m 3 -E "ERROR|runtime error|SUMMARY" "${f}" | sed 's/^/        /'
+    # The error, the first frames of each stack (access, free, allocation) and the summary: enough
+    # to find a race that a later run may not repeat.
+    grep -E "ERROR|runtime error|SUMMARY|freed by|allocated by|Thread T|^ *#[0-9] " "${f}" | head -n 60 |
+      sed 's/^/        /'
   done
   failed=$((failed + ${#report_files[@]}))
 fi

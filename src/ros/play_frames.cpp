@@ -61,5 +61,7 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "play_frames", ros::init_options::AnonymousName);
   std::vector<std::string> words;
   ros::removeROSArgs(argc, argv, words);  // words[0] is the program
-  return visual_gyro::cli::runCommand("play_frames", kUsage, [&] { return run(words); });
+  const int status = visual_gyro::cli::runCommand("play_frames", kUsage, [&] { return run(words); });
+  ros::shutdown();  // roscpp's threads stop before static destruction frees what they read
+  return status;
 }

@@ -35,7 +35,32 @@ OutputSettings outputSettings(const VisualGyroConfig& config) {
 VisualGyroNodelet::VisualGyroNodelet() = default;
 
 VisualGyroNodelet::~VisualGyroNodelet() {
+  // A nodelet manager may destroy this nodelet while the manager's threads still run its
+  // callbacks (unloading removes the queues; it does not drain them), so every source of a
+  // callback is stopped before any member goes: each shutdown waits for a callback of its own that
+  // is in progress. Input callbacks never take connect_mutex_, so stopping them under it is safe.
   diagnostic_timer_.stop();
+  {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    unloading_ = true;
+    shutdownInputs();
+    probe_.reset();
+  }
+  // Publishers last but one: a connect callback arriving now returns at once (unloading_).
+  outputs_.reset();
+  reconfigure_server_.reset();
+  updater_.reset();
+}
+
+void VisualGyroNodelet::shutdownInputs() {
+  camera_sub_.shutdown();
+  image_sub_.shutdown();
+  compressed_sync_.reset();
+  compressed_camera_sub_.unsubscribe();
+  compressed_info_sub_.unsubscribe();
+  compressed_image_sub_.shutdown();
+  ground_truth_sub_.shutdown();
+  subscribed_ = false;
 }
 
 void VisualGyroNodelet::onInit() {
@@ -94,16 +119,10 @@ void VisualGyroNodelet::onInit() {
 
 void VisualGyroNodelet::connectCb() {
   std::lock_guard<std::mutex> lock(connect_mutex_);
+  if (unloading_) return;
   const bool needed = outputs_->wanted();
   if (!needed && subscribed_) {
-    camera_sub_.shutdown();
-    image_sub_.shutdown();
-    compressed_sync_.reset();
-    compressed_camera_sub_.unsubscribe();
-    compressed_info_sub_.unsubscribe();
-    compressed_image_sub_.shutdown();
-    ground_truth_sub_.shutdown();
-    subscribed_ = false;
+    shutdownInputs();
     probe_->update(false, false);
     reset_pending_ = true;  // the next image after a pause starts afresh
     NODELET_DEBUG("visual_gyro: no subscribers left, unsubscribed from the camera");

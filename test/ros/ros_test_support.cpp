@@ -183,6 +183,9 @@ int runRosTests(int argc, char** argv, const char* node_name, int threads, const
   spinner.start();
   const int result = body();
   spinner.stop();
+  // roscpp's own threads (poll, XML-RPC, connections) stop here, before static destruction frees
+  // what they read.
+  ros::shutdown();
   return result;
 }
 

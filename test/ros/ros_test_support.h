@@ -88,7 +88,8 @@ class OutputRecorder {
 frame_player::PlayerOptions playerUnderNamespace(const std::string& ns);
 
 /// main() of a gtest with ROS: gtest and ROS initialised as `node_name`, an AsyncSpinner with
-/// `threads` threads running around body() (which runs the tests and returns their result).
+/// `threads` threads running around body() (which runs the tests and returns their result), then
+/// ros::shutdown().
 int runRosTests(int argc, char** argv, const char* node_name, int threads, const std::function<int()>& body);
 
 }  // namespace ros_test

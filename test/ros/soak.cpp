@@ -245,5 +245,7 @@ TEST(Soak, ReplayKeepsMemoryDescriptorsAndAnswers) {
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "soak");
-  return RUN_ALL_TESTS();
+  const int result = RUN_ALL_TESTS();
+  ros::shutdown();  // roscpp's threads stop before static destruction frees what they read
+  return result;
 }

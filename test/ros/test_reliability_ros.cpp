@@ -11,12 +11,14 @@
 #include <limits>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Geometry>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <dynamic_reconfigure/Reconfigure.h>
 #include <geometry_msgs/PoseStamped.h>
+#include <nodelet/loader.h>
 #include <opencv2/core.hpp>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
@@ -503,6 +505,54 @@ TEST(ReliabilityRos, NanMaxGapIsRefusedAndAGapStillResets) {
   EXPECT_NEAR(rotations[1].previous_stamp.toSec(), t0 + 60.1, 1e-6);
   for (const auto& r : rotations) EXPECT_TRUE(r.valid) << r.status;
   EXPECT_EQ(h.imus().size(), 2u);
+}
+
+// A nodelet manager unloads the nodelet while images stream in (the manager's unload service, a
+// bond broken by the launching process): every callback source stops before the members it reads
+// go. Three load/unload cycles in this process; make sanitize runs it under AddressSanitizer. Last in
+// this file: the nodelet loaded here publishes diagnostics of its own.
+TEST(ReliabilityRos, NodeletUnloadedWhileImagesStreamIn) {
+  const std::string name = "/unload_gyro";
+  ros::NodeHandle nh;
+  ros::Publisher image_pub = nh.advertise<sensor_msgs::Image>("/unload_camera/image_raw", 5);
+  ros::Publisher info_pub = nh.advertise<sensor_msgs::CameraInfo>("/unload_camera/camera_info", 5);
+  const sensor_msgs::CameraInfo info = vgt::cameraInfo(vgt::handheldScene(), "unload_camera_optical");
+  ros::param::set(name + "/backend", "cpu");
+  nodelet::Loader loader(false);  // in this process, without the manager's services
+  const nodelet::M_string remappings = {{"/image", "/unload_camera/image_raw"}};
+  double stamp = 5000.0;
+  for (int cycle = 0; cycle < 3; ++cycle) {
+    ASSERT_TRUE(loader.load(name, "visual_gyro/VisualGyroNodelet", remappings, nodelet::V_string()));
+    std::atomic<int> answers{0};
+    ros::Subscriber orientation_sub = nh.subscribe<geometry_msgs::PoseStamped>(
+        name + "/orientation", 10, [&answers](const geometry_msgs::PoseStampedConstPtr&) { ++answers; });
+    ASSERT_TRUE(waitFor([&] { return image_pub.getNumSubscribers() > 0 && info_pub.getNumSubscribers() > 0; }, 15.0))
+        << "cycle " << cycle << ": the loaded nodelet did not subscribe";
+    ros::WallDuration(0.3).sleep();
+    // Frames every 5 ms from another thread, so that some are in the nodelet's queue or being
+    // processed when it is unloaded.
+    std::atomic<bool> streaming{true};
+    std::thread publisher([&] {
+      for (size_t k = 0; streaming; ++k) {
+        const sensor_msgs::Image image =
+            vgt::imageMsg(turn()[k % turn().size()], enc::MONO8, stamp + 0.1 * k, "unload_camera_optical");
+        sensor_msgs::CameraInfo stamped = info;
+        stamped.header = image.header;
+        info_pub.publish(stamped);
+        image_pub.publish(image);
+        ros::WallDuration(0.005).sleep();
+      }
+    });
+    const bool answered = waitFor([&] { return answers >= 2; }, 20.0);
+    EXPECT_TRUE(loader.unload(name)) << "cycle " << cycle;
+    streaming = false;
+    publisher.join();
+    EXPECT_TRUE(answered) << "cycle " << cycle << ": the nodelet answered " << answers << " frames";
+    orientation_sub.shutdown();
+    EXPECT_TRUE(waitFor([&] { return image_pub.getNumSubscribers() == 0; }, 15.0))
+        << "cycle " << cycle << ": the unloaded nodelet still subscribes to the images";
+    stamp += 1000.0;
+  }
 }
 
 }  // namespace
