@@ -35,18 +35,21 @@ OutputSettings outputSettings(const VisualGyroConfig& config) {
 VisualGyroNodelet::VisualGyroNodelet() = default;
 
 VisualGyroNodelet::~VisualGyroNodelet() {
-  // A nodelet manager may destroy this nodelet while the manager's threads still run its
-  // callbacks (unloading removes the queues; it does not drain them), so every source of a
-  // callback is stopped before any member goes: each shutdown waits for a callback of its own that
-  // is in progress. Input callbacks never take connect_mutex_, so stopping them under it is safe.
+  // A manager that unloads this nodelet during one of its callbacks destroys it on that worker
+  // thread once the callback returns, when the nodelet's other queue may be gone already; so only
+  // the queue of the callback that held it (the single-threaded one: every input and connect
+  // callback is there) and the service queue owned here may be touched. The service thread is
+  // joined first: no diagnostics or reconfigure callback runs after it. Each shutdown below waits
+  // for a callback of its own in progress; input callbacks never take connect_mutex_.
+  service_running_ = false;
+  if (service_thread_.joinable()) service_thread_.join();
   diagnostic_timer_.stop();
   {
     std::lock_guard<std::mutex> lock(connect_mutex_);
-    unloading_ = true;
+    unloading_ = true;  // a connect callback arriving now subscribes nothing
     shutdownInputs();
     probe_.reset();
   }
-  // Publishers last but one: a connect callback arriving now returns at once (unloading_).
   outputs_.reset();
   reconfigure_server_.reset();
   updater_.reset();
@@ -81,10 +84,13 @@ void VisualGyroNodelet::onInit() {
   }
   probe_.reset(new InputProbe(nh, pnh, it_.get(), decode_compressed_));
 
-  // On the multi-threaded queue: a change is accepted while a frame is being processed. The
-  // server reads the initial values from the private parameters (config/visual_gyro.yaml) and
-  // calls reconfigureCb once before returning.
-  reconfigure_server_.reset(new dynamic_reconfigure::Server<Config>(reconfigure_mutex_, getMTPrivateNodeHandle()));
+  // On the service queue, spun by a thread of this nodelet (see the destructor): a change is
+  // accepted while a frame is being processed. The server reads the initial values from the
+  // private parameters (config/visual_gyro.yaml) and calls reconfigureCb once before returning.
+  ros::NodeHandle service_nh(nh), service_pnh(pnh);
+  service_nh.setCallbackQueue(&service_queue_);
+  service_pnh.setCallbackQueue(&service_queue_);
+  reconfigure_server_.reset(new dynamic_reconfigure::Server<Config>(reconfigure_mutex_, service_pnh));
   Config min, max;
   reconfigure_settings::ranges(&min, &max);
   reconfigure_server_->setConfigMin(min);
@@ -95,9 +101,9 @@ void VisualGyroNodelet::onInit() {
   updater_.reset(new diagnostic_updater::Updater(nh, pnh, getName()));
   updater_->setHardwareID("visual_gyro");
   updater_->add("visual_gyro", this, &VisualGyroNodelet::diagnose);
-  // A wall timer on the multi-threaded queue: diagnostics keep coming at 1 Hz when the
-  // (simulated) clock stops, and while a slow frame is processed.
-  diagnostic_timer_ = getMTNodeHandle().createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
+  // A wall timer on the service queue: diagnostics keep coming at 1 Hz when the (simulated) clock
+  // stops, and while a slow frame is processed.
+  diagnostic_timer_ = service_nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
     {
       std::lock_guard<std::mutex> lock(connect_mutex_);
       probe_->update(subscribed_ && params_.use_camera_info, false);
@@ -111,6 +117,10 @@ void VisualGyroNodelet::onInit() {
     outputs_->advertise(nh, pnh, boost::bind(&VisualGyroNodelet::connectCb, this));
   }
   connectCb();  // ~publish_tf subscribes at once
+  service_running_ = true;
+  service_thread_ = std::thread([this] {
+    while (service_running_ && ros::ok()) service_queue_.callAvailable(ros::WallDuration(0.05));
+  });
   NODELET_INFO("visual_gyro: %s input '%s'%s, backend request '%s', output frame '%s'",
                params_.use_camera_info ? "camera" : "image (intrinsics from parameters)",
                nh.resolveName("image").c_str(), params_.publish_tf ? ", TF broadcast on" : "",

@@ -7,6 +7,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
@@ -15,6 +16,7 @@
 #include <message_filters/subscriber.h>
 #include <message_filters/time_synchronizer.h>
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/CompressedImage.h>
@@ -48,10 +50,12 @@ namespace visual_gyro {
 /// missing). This class keeps the subscriptions, the frame checks (stamps, camera) and the
 /// pipeline.
 ///
-/// Threads and locks. Image callbacks run on the nodelet's single-threaded queue; the diagnostics
-/// timer and the dynamic_reconfigure server run on its multi-threaded queue, so neither waits for
-/// a frame. Locks, always taken in this order (a later one may be taken while holding an earlier
-/// one, never the reverse):
+/// Threads and locks. Image, camera_info, ground-truth and connect callbacks run on the nodelet's
+/// single-threaded queue; the diagnostics timer and the dynamic_reconfigure server run on a
+/// service queue that a thread of the nodelet spins, so neither waits for a frame (not on the
+/// nodelet's multi-threaded queue: a manager may destroy the nodelet after that queue is gone).
+/// Locks, always taken in this order (a later one may be taken while holding an earlier one,
+/// never the reverse):
 ///   1. connect_mutex_: the subscriptions (connect callbacks come from other threads).
 ///   2. frame_mutex_: one frame's processing: the pipeline, the previous stamp, the camera, and
 ///      the OutputPublisher's integration and output-frame cache.
@@ -122,6 +126,11 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::unique_ptr<message_filters::TimeSynchronizer<sensor_msgs::CompressedImage, sensor_msgs::CameraInfo>>
       compressed_sync_;
   ros::Subscriber compressed_image_sub_;
+  /// The diagnostics timer's and the reconfigure server's queue, spun by service_thread_ while
+  /// service_running_; declared before them, so it outlives them.
+  ros::CallbackQueue service_queue_;
+  std::thread service_thread_;
+  std::atomic<bool> service_running_{false};
   std::unique_ptr<dynamic_reconfigure::Server<Config>> reconfigure_server_;
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
