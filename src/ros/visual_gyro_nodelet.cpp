@@ -38,18 +38,14 @@ VisualGyroNodelet::~VisualGyroNodelet() {
   // A manager that unloads this nodelet during one of its callbacks destroys it on that worker
   // thread once the callback returns, when the nodelet's other queue may be gone already; so only
   // the queue of the callback that held it (the single-threaded one: every input and connect
-  // callback is there) and the service queue owned here may be touched. The service thread is
-  // joined first: no diagnostics or reconfigure callback runs after it. Each shutdown below waits
-  // for a callback of its own in progress; input callbacks never take connect_mutex_.
+  // callback is there) and the service queue owned here may be touched. Callbacks on the nodelet's
+  // queues hold it alive, so none runs from here on; the service thread's do not, so it is joined
+  // first. Then every source of callbacks stops before the members it reads go.
   service_running_ = false;
   if (service_thread_.joinable()) service_thread_.join();
   diagnostic_timer_.stop();
-  {
-    std::lock_guard<std::mutex> lock(connect_mutex_);
-    unloading_ = true;  // a connect callback arriving now subscribes nothing
-    shutdownInputs();
-    probe_.reset();
-  }
+  shutdownInputs();
+  probe_.reset();
   outputs_.reset();
   reconfigure_server_.reset();
   updater_.reset();
@@ -129,7 +125,6 @@ void VisualGyroNodelet::onInit() {
 
 void VisualGyroNodelet::connectCb() {
   std::lock_guard<std::mutex> lock(connect_mutex_);
-  if (unloading_) return;
   const bool needed = outputs_->wanted();
   if (!needed && subscribed_) {
     shutdownInputs();

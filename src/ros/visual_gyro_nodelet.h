@@ -75,7 +75,8 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   void onInit() override;
   /// Subscribes or unsubscribes the inputs as outputs gain or lose subscribers.
   void connectCb();
-  /// Ends every input subscription (images, camera_info, ground truth); under connect_mutex_.
+  /// Ends every input subscription (images, camera_info, ground truth); under connect_mutex_, or
+  /// in the destructor.
   void shutdownInputs();
   void cameraCb(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
   void imageCb(const sensor_msgs::ImageConstPtr& image);
@@ -139,7 +140,6 @@ class VisualGyroNodelet : public nodelet::Nodelet {
   std::mutex connect_mutex_;             ///< 1: the subscriptions
   std::atomic<bool> subscribed_{false};  ///< also read by the diagnostics
   std::atomic<bool> reset_pending_{false};  ///< reset before the next frame (inputs re-subscribed)
-  bool unloading_ = false;  ///< set by the destructor under connect_mutex_: subscribe nothing more
 
   std::mutex frame_mutex_;  ///< 2: guards the pipeline state below
   std::unique_ptr<VisualGyro> pipeline_;
