@@ -883,6 +883,121 @@ TEST(Estimator, EstimateSameFrameDoesNotCountAsAFrame) {
 // The hull the descriptor-area check measures: the inliers' previous bearings on the normalised
 // image plane; a match the rotation does not explain, and a bearing too far off the axis for the
 // plane, stay out of it.
+namespace {
+
+// Pure-rotation matches through a rolling shutter whose rate changes within the pair: match i's
+// rotation is R exp(s_i skew), s_i its mean normalised row over both views (the row skew's model,
+// rotation_refinement.h), with `noise` [rad] on every bearing.
+Scene rowSkewedScene(const Matrix3d& R, const Vector3d& skew, int n, double noise, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Scene s;
+  for (int i = 0; i < n; ++i) {
+    const Vector3d cur = randomBearingInView(rng);
+    Vector3d prev = R * cur;
+    for (int k = 0; k < 3; ++k) {  // the mean row depends on prev: a few fixed-point steps
+      const double row = 0.5 * (prev.y() / prev.z() + cur.y() / cur.z());
+      prev = R * vg::so3Exp(row * skew) * cur;
+    }
+    s.current.push_back(perturb(cur, noise, rng));
+    s.previous.push_back(perturb(prev, noise, rng));
+    s.inlier.push_back(true);
+  }
+  return s;
+}
+
+vg::RefinedRotation refinedPure(const Scene& s, const Matrix3d& start, bool row_skew, vg::JackknifeSpread* spread) {
+  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  vg::VerifiedRotation verified;
+  verified.rotation = start;
+  vg::RefinedRotation refined = vg::refineRotation(matches, verified, threshold, 10);
+  const vg::RefinedRotation rigid = refined;
+  if (row_skew) {
+    EXPECT_TRUE(vg::fitRowSkew(matches, &refined, threshold));
+    EXPECT_EQ(refined.inliers, rigid.inliers);  // the model choice reads the rigid fit
+    EXPECT_EQ(refined.truncated_cost, rigid.truncated_cost);
+  }
+  if (spread != nullptr) *spread = vg::jackknifeSpread(matches, refined, threshold);
+  return refined;
+}
+
+}  // namespace
+
+// A rolling shutter under a changing rate: the rigid fit is biased, the row skew's model finds the
+// rotation of the principal point's row and the skew itself, with a covariance that covers its
+// error, and the jackknife's groups in that model; the rigid fit keeps its inliers for the model choice.
+TEST(RowSkew, FitsARollingShutterAndNothingWithoutOne) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(1.5 * kDeg, -0.8 * kDeg, 0.3 * kDeg);
+  const Vector3d skew = Vector3d(0.4, -0.6, 0.2) * kDeg;  // per unit of normalised row
+  const Scene s = rowSkewedScene(R, skew, 400, 0.2e-3, 7);
+  const Matrix3d start = vg::so3Exp(Vector3d(0.1, -0.1, 0.05) * kDeg) * R;
+  vg::JackknifeSpread spread;
+  const vg::RefinedRotation fitted = refinedPure(s, start, true, &spread);
+  const vg::RefinedRotation rigid = refinedPure(s, start, false, nullptr);
+  ASSERT_TRUE(fitted.pure_rotation);
+  const Vector3d error = vg::so3Log(R.transpose() * fitted.rotation);
+  const double rigid_error = vg::rotationAngleBetween(R, rigid.rotation);
+  std::printf("row skew: error %.4f deg (rigid fit %.4f deg), skew (%.3f %.3f %.3f) deg\n", error.norm() / kDeg,
+              rigid_error / kDeg, fitted.row_skew.x() / kDeg, fitted.row_skew.y() / kDeg, fitted.row_skew.z() / kDeg);
+  EXPECT_LT(error.norm(), 0.005 * kDeg);
+  EXPECT_GT(rigid_error, 5.0 * error.norm());
+  EXPECT_LT((fitted.row_skew - skew).norm(), 0.05 * skew.norm());
+  EXPECT_TRUE(rigid.row_skew.isZero());
+  EXPECT_LT(error.dot(fitted.covariance.inverse() * error), 16.3);  // chi^2_3 at 99.9 %
+  ASSERT_GT(spread.groups, 0);
+  EXPECT_TRUE(spread.covariance.allFinite());
+  EXPECT_LT(spread.covariance.trace(), 10.0 * fitted.covariance.trace());
+
+  // A global shutter: the fitted skew is noise, the rotation as good as the rigid fit's.
+  const Scene global = rowSkewedScene(R, Vector3d::Zero(), 400, 0.2e-3, 8);
+  const vg::RefinedRotation fitted_global = refinedPure(global, start, true, nullptr);
+  const vg::RefinedRotation rigid_global = refinedPure(global, start, false, nullptr);
+  EXPECT_LT(fitted_global.row_skew.norm(), 0.02 * kDeg);
+  EXPECT_LT(vg::rotationAngleBetween(R, fitted_global.rotation),
+            1.5 * vg::rotationAngleBetween(R, rigid_global.rotation) + 0.001 * kDeg);
+}
+
+// Only a pure-rotation winner takes the skew, and its own entry among the contenders moves with it.
+TEST(CandidateRefinement, WinnerTakesTheRowSkewAndItsContenderEntryFollows) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.5 * kDeg, 0.0);
+  const Scene s = rowSkewedScene(R, Vector3d(0.3, 0.2, -0.1) * kDeg, 300, 0.2e-3, 5);
+  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  vg::VerifiedRotation verified;
+  verified.rotation = R;
+  vg::RefinementChoice choice;
+  choice.winner = vg::refineRotation(matches, verified, threshold, 10);
+  const vg::RefinedRotation other = refinedAt(vg::so3Exp(Vector3d(0, 0.01, 0)) * R, Vector3d(1, 0, 0), 50, 1.0);
+  choice.contenders = {choice.winner, other};
+  ASSERT_TRUE(vg::fitWinnerRowSkew(matches, threshold, &choice));
+  EXPECT_FALSE(choice.winner.row_skew.isZero());
+  EXPECT_EQ(choice.contenders[0].rotation, choice.winner.rotation);
+  EXPECT_EQ(choice.contenders[1].rotation, other.rotation);
+  vg::RefinementChoice general;
+  general.winner = other;
+  EXPECT_FALSE(vg::fitWinnerRowSkew(matches, threshold, &general));
+  EXPECT_TRUE(general.winner.row_skew.isZero());
+}
+
+// The estimator's part: on by default, reported in the diagnostics, off in the ablation.
+TEST(VoteMethod, RowSkewIsAPartThatTheAblationSwitchesOff) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(-1.0 * kDeg, 0.6 * kDeg, -0.2 * kDeg);
+  const Scene s = rowSkewedScene(R, Vector3d(-0.25, 0.15, 0.05) * kDeg, 500, 0.2e-3, 11);
+  auto with = vg::createRotationEstimator(cpuSettings("vote"));
+  auto without = vg::createRotationEstimator(cpuSettings("vote"));
+  without->setDisabledParts(1u << static_cast<int>(vg::VotePart::kRowSkew));
+  const vg::RotationResult a = with->estimate(s.previous, s.current);
+  const vg::RotationResult b = without->estimate(s.previous, s.current);
+  ASSERT_TRUE(a.valid() && b.valid()) << a.reason << " / " << b.reason;
+  EXPECT_TRUE(a.pure_rotation);
+  EXPECT_LT((a.diagnostics.row_skew - Vector3d(-0.25, 0.15, 0.05) * kDeg).norm(), 0.03 * kDeg);
+  EXPECT_TRUE(b.diagnostics.row_skew.isZero());
+  EXPECT_LT(vg::rotationAngleBetween(R, a.rotation), 0.2 * vg::rotationAngleBetween(R, b.rotation));
+  EXPECT_STREQ(vg::votePartName(vg::VotePart::kRowSkew), "row_skew");
+}
+
 TEST(InlierHull, AreaOfTheInliersOnTheImagePlane) {
   std::vector<Vector3d> previous, current;
   for (double x = -0.2; x <= 0.2 + 1e-12; x += 0.05)

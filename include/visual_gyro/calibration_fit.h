@@ -52,9 +52,11 @@ constexpr double kMaxFitInflation = 20.0;
 /// The residual of one match under the motion (rotation R with b_prev ~ R b_cur, unit translation
 /// t in the previous frame, zero for a pure rotation), as a vector [rad]: the distance of b_prev
 /// from the epipolar plane of R b_cur along the plane's normal, or, without translation, b_prev -
-/// R b_cur.
+/// R b_cur; with a rolling shutter's `row_skew`, R is the match's own rotation R exp(s row_skew)
+/// (s = matchRow, geometry.h).
 Eigen::Vector3d motionResidual(const Eigen::Vector3d& previous, const Eigen::Vector3d& current,
-                               const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation);
+                               const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
+                               const Eigen::Vector3d& row_skew = Eigen::Vector3d::Zero());
 
 /// Correlation in [-1, 1] of the residual vectors (motionResidual) of neighbouring matches: each
 /// match with its nearest other match between kFitMinSeparationPx and kFitMaxSeparationPx away
@@ -64,9 +66,11 @@ Eigen::Vector3d motionResidual(const Eigen::Vector3d& previous, const Eigen::Vec
 /// Not thread-safe (reuses its buffers); one per stream.
 class ResidualCorrelation {
  public:
+  /// `row_skew`: a pure rotation's rolling-shutter skew (VoteDiagnostics::row_skew), so that what
+  /// the skew explains is no residual.
   double compute(const std::vector<Eigen::Vector3d>& previous, const std::vector<Eigen::Vector3d>& current,
                  const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation, double pixel_angle_rad,
-                 double gate_rad);
+                 double gate_rad, const Eigen::Vector3d& row_skew = Eigen::Vector3d::Zero());
 
  private:
   struct Point {

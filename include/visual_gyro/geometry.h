@@ -33,6 +33,17 @@ inline Eigen::Matrix3d so3Exp(const Eigen::Vector3d& w) {
   return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
 }
 
+/// A rolling shutter's row of a unit bearing: its normalised image row y / z (0 at the principal
+/// point); 0 for a bearing more than 84 deg off the axis (z <= 0.1), which has no row.
+inline double normalisedRow(double y, double z) { return z > 0.1 ? y / z : 0.0; }
+
+/// The row of a match (previous <-> current bearing) in the row-skew model of a rolling shutter
+/// (RotationResult's row skew): the mean normalised row of its two bearings. Match i's rotation is
+/// R exp(s_i row_skew), R the rotation of the principal point's row.
+inline double matchRow(const Eigen::Vector3d& previous, const Eigen::Vector3d& current) {
+  return 0.5 * (normalisedRow(previous.y(), previous.z()) + normalisedRow(current.y(), current.z()));
+}
+
 /// SO(3) logarithm: the rotation vector (axis * angle [rad], angle in [0, pi]) of R. Goes through
 /// the normalised quaternion, which is accurate for small angles too.
 inline Eigen::Vector3d so3Log(const Eigen::Matrix3d& rotation) {

@@ -197,6 +197,11 @@ struct VoteDiagnostics {
   /// Descriptor patches the inliers' convex hull covers on the image plane (its area over the
   /// squared match footprint; kMinDescriptorAreas); NaN when the footprint is unknown.
   double descriptor_areas = std::numeric_limits<double>::quiet_NaN();
+  /// A pure rotation's change down the image [rad per unit of matchRow (geometry.h), camera frame]:
+  /// match i's rotation is rotation * exp(s_i row_skew), the result's rotation that of the principal
+  /// point's row. About zero for a global shutter, a rolling shutter's under a changing rate; zero
+  /// under general motion and where not fitted.
+  Eigen::Vector3d row_skew = Eigen::Vector3d::Zero();
 };
 
 /// Result of one rotation estimate.
@@ -273,6 +278,7 @@ enum class VotePart : uint8_t {
   kDescent,           ///< the descent on the truncated cost under the same condition
   kRefitJackknife,    ///< the covariance's refits without each group (many near misses)
   kContenderSpread,   ///< the covariance's spread of the competing refined candidates
+  kRowSkew,           ///< a pure rotation's change down the image (a rolling shutter's)
   kCount
 };
 /// The part's name in `vote-without-<name>` ("wide_vote", "prior_candidate", ...).

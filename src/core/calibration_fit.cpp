@@ -1,5 +1,6 @@
 // Whether the camera model fits the images: correlation of neighbouring matches' residuals.
 #include "visual_gyro/calibration_fit.h"
+#include "visual_gyro/geometry.h"
 
 #include <algorithm>
 #include <cmath>
@@ -26,8 +27,11 @@ long long cellKey(const Eigen::Vector3d& b, double cell) {
 }  // namespace
 
 Eigen::Vector3d motionResidual(const Eigen::Vector3d& previous, const Eigen::Vector3d& current,
-                               const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
-  const Eigen::Vector3d predicted = rotation * current;
+                               const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
+                               const Eigen::Vector3d& row_skew) {
+  const Eigen::Vector3d predicted =
+      row_skew.isZero() ? Eigen::Vector3d(rotation * current)
+                        : Eigen::Vector3d(rotation * so3Exp(matchRow(previous, current) * row_skew) * current);
   if (translation.squaredNorm() < 0.25) return previous - predicted;
   // Along the epipolar line the residual is parallax (depth), which neighbours share without any
   // calibration error; only the distance from the epipolar plane is the model's error.
@@ -40,7 +44,8 @@ Eigen::Vector3d motionResidual(const Eigen::Vector3d& previous, const Eigen::Vec
 
 double ResidualCorrelation::compute(const std::vector<Eigen::Vector3d>& previous,
                                     const std::vector<Eigen::Vector3d>& current, const Eigen::Matrix3d& rotation,
-                                    const Eigen::Vector3d& translation, double pixel_angle_rad, double gate_rad) {
+                                    const Eigen::Vector3d& translation, double pixel_angle_rad, double gate_rad,
+                                    const Eigen::Vector3d& row_skew) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (previous.size() != current.size() || !(pixel_angle_rad > 0.0) || !(gate_rad > 0.0)) return nan;
   // Chords instead of angles: equal to well below a pixel at these separations.
@@ -52,7 +57,7 @@ double ResidualCorrelation::compute(const std::vector<Eigen::Vector3d>& previous
   // standard error is about 1 / sqrt(pairs)), and the search stays a fraction of a millisecond.
   const size_t stride = std::max<size_t>(1, (previous.size() + kFitMaxMatches - 1) / kFitMaxMatches);
   for (size_t i = 0; i < previous.size(); i += stride) {
-    const Eigen::Vector3d r = motionResidual(previous[i], current[i], rotation, translation);
+    const Eigen::Vector3d r = motionResidual(previous[i], current[i], rotation, translation, row_skew);
     if (!r.allFinite() || !current[i].allFinite() || r.norm() > max_residual) continue;
     points_.push_back(Point{cellKey(current[i], max_chord), current[i], r});
   }

@@ -301,4 +301,14 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
   return moved && choice->challenge(refineMotion(matches, rotation, translation, threshold, iterations));
 }
 
+// The contenders' spread skips a contender at the winner's rotation, its own entry: that entry must
+// move with the winner, or the winner's rigid and skewed fits would count as two rotations.
+bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice) {
+  const Eigen::Matrix3d rigid = choice->winner.rotation;
+  if (!fitRowSkew(matches, &choice->winner, threshold)) return false;
+  for (RefinedRotation& c : choice->contenders)
+    if (c.pure_rotation && c.rotation == rigid) c = choice->winner;
+  return true;
+}
+
 }  // namespace visual_gyro

@@ -123,6 +123,7 @@ const char* votePartName(VotePart part) {
     case VotePart::kDescent: return "descent";
     case VotePart::kRefitJackknife: return "refit_jackknife";
     case VotePart::kContenderSpread: return "contender_spread";
+    case VotePart::kRowSkew: return "row_skew";
     case VotePart::kCount: break;
   }
   return "";
@@ -398,6 +399,7 @@ void fillVoteDiagnostics(const CandidateVote& vote, const RefinementChoice& choi
   diagnostics->rotation_inliers = choice.from->verified.rotation_inliers;
   diagnostics->epipolar_inliers = choice.from->verified.epipolar_inliers;
   diagnostics->residual_sigma = choice.winner.residual_sigma;
+  diagnostics->row_skew = choice.winner.row_skew;
   if (prior != nullptr) diagnostics->prior_offset = rotationAngleBetween(so3Exp(*prior), choice.winner.rotation);
 }
 
@@ -456,6 +458,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     diagnostics.restart_won = restartFromTranslations(w.matches, threshold, iterations, &choice);
   if (partEnabled(VotePart::kDescent))
     diagnostics.descent_won = descendTruncatedCost(w.matches, threshold, iterations, &choice);
+  if (partEnabled(VotePart::kRowSkew)) fitWinnerRowSkew(w.matches, threshold, &choice);
 
   const RefinedRotation& winner = choice.winner;
   fillAngles(winner.rotation, &result);

@@ -19,6 +19,12 @@ constexpr double kTranslationGain = 0.15;
 // Levenberg-Marquardt stops when a step turns the rotation by less than this [rad] (3e-4 deg:
 // two orders of magnitude below the smallest rotation error on any sequence).
 constexpr double kConvergedRotation = 5e-6;
+// The row skew: Gauss-Newton steps from the rigid fit; the fewest matches it is fitted on (three
+// parameters more than the rotation, determined by how the rows spread: with fewer, under a global
+// shutter, whatever bias the few matches share turns into a skew, and the rotation at the principal
+// point's row moves with it).
+constexpr int kRowSkewIterations = 5;
+constexpr int kRowSkewMinMatches = 100;
 
 // Two unit vectors orthogonal to t: the tangent plane in which t is updated.
 Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
@@ -33,24 +39,78 @@ Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
 // Whether match i's bearings are in the same hemisphere at the last rotateAll's rotation.
 inline bool usable(const FrameMatches::Scratch& s, size_t i) { return s.facing[i] > 0.0; }
 
-// J^T J of the pure-rotation residual b_prev x R exp(d) b_cur, without its R^T ... R: with
-// K = [p]x [Rc]x = Rc p^T - (p.Rc) I, K^T K = |Rc|^2 p p^T - (p.Rc)(p Rc^T + Rc p^T) + (p.Rc)^2 I,
-// summed as three terms over the matches added.
-struct PureRotationInformation {
-  Eigen::Matrix3d pp = Eigen::Matrix3d::Zero(), cross = Eigen::Matrix3d::Zero();
-  double d2 = 0.0;
-  void add(const Eigen::Vector3d& p, const Eigen::Vector3d& rc) {
+// A rolling shutter exposes the rows one after another, so the two exposures of a point lie
+// further apart or closer in time by its row; while the rate changes within the pair (a hand's
+// shake) the rotation between them changes with the row, to first order linearly. Match i's
+// rotation is R exp(s_i e): s_i its row (matchRow, geometry.h), e the change per unit of s
+// (RefinedRotation::row_skew). A global shutter has e = 0.
+inline double matchRow(const FrameMatches& m, size_t i) { return visual_gyro::matchRow(m.previous(i), m.current(i)); }
+
+// exp(w) c to second order in w (|w| is a few hundredths of a radian at most).
+inline Eigen::Vector3d deskewed(const Eigen::Vector3d& c, const Eigen::Vector3d& w) {
+  const Eigen::Vector3d wc = w.cross(c);
+  return c + wc + 0.5 * w.cross(wc);
+}
+
+// The normal equations of the pure-rotation residuals n = b_prev x R exp(s e) b_cur in the step
+// (R exp(d), e + de); the rigid ones with e = 0 (and their first block alone). With
+// K = [p]x [R c_s]x = R c_s p^T - (p . R c_s) I (c_s = exp(s e) b_cur): J_d = -K R and
+// J_de = s J_d (to first order), so J^T J has the blocks s^k R^T K^T K R (k = 0, 1, 2) and J^T n
+// the blocks s^k R^T (p . R c_s) n, summed in the rotated frame and turned back once.
+struct RowSkewEquations {
+  Eigen::Matrix3d information[3] = {Eigen::Matrix3d::Zero(), Eigen::Matrix3d::Zero(), Eigen::Matrix3d::Zero()};
+  Eigen::Vector3d gradient[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  double sum_sq = 0.0;  // unweighted squared residuals of the matches added
+  int used = 0;
+
+  void add(const Eigen::Vector3d& p, const Eigen::Vector3d& rc, const Eigen::Vector3d& n, double s, double w) {
+    // K^T K = |Rc|^2 p p^T - (p.Rc)(p Rc^T + Rc p^T) + (p.Rc)^2 I, once per match.
     const double d = p.dot(rc);
-    pp.noalias() += rc.squaredNorm() * p * p.transpose();
-    cross.noalias() += d * p * rc.transpose();
-    d2 += d * d;
+    Eigen::Matrix3d KtK = rc.squaredNorm() * p * p.transpose();
+    KtK.noalias() -= d * (p * rc.transpose() + rc * p.transpose());
+    KtK.diagonal().array() += d * d;
+    information[0].noalias() += w * KtK;
+    information[1].noalias() += (w * s) * KtK;
+    information[2].noalias() += (w * s * s) * KtK;
+    const Eigen::Vector3d g = (w * d) * n;
+    gradient[0] += g;
+    gradient[1] += s * g;
+    sum_sq += n.squaredNorm();
+    ++used;
   }
-  Eigen::Matrix3d sum() const {
-    Eigen::Matrix3d KtK = pp - cross - cross.transpose();
-    KtK.diagonal().array() += d2;
-    return KtK;
+  Eigen::Matrix<double, 6, 6> hessian(const Eigen::Matrix3d& R) const {
+    Eigen::Matrix<double, 6, 6> H;
+    H.topLeftCorner<3, 3>() = R.transpose() * information[0] * R;
+    H.topRightCorner<3, 3>() = R.transpose() * information[1] * R;
+    H.bottomLeftCorner<3, 3>() = H.topRightCorner<3, 3>().transpose();
+    H.bottomRightCorner<3, 3>() = R.transpose() * information[2] * R;
+    return H;
+  }
+  Eigen::Matrix<double, 6, 1> rhs(const Eigen::Matrix3d& R) const {
+    Eigen::Matrix<double, 6, 1> g;
+    g << R.transpose() * gradient[0], R.transpose() * gradient[1];
+    return g;
   }
 };
+
+// Match i's rotated current bearing R exp(s_i e) b_cur.
+inline Eigen::Vector3d skewRotated(const FrameMatches& m, size_t i, const Eigen::Matrix3d& R, const Eigen::Vector3d& e) {
+  return R * deskewed(m.current(i), matchRow(m, i) * e);
+}
+
+// The equations of the matches in the same hemisphere within `gate` [rad] at (R, e), Huber-weighted
+// beyond `huber` (0: unweighted).
+RowSkewEquations rowSkewEquations(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& e,
+                                  double gate, double huber) {
+  RowSkewEquations eq;
+  for (size_t i = 0; i < m.size(); ++i) {
+    const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, R, e), n = p.cross(rc);
+    const double r = n.norm();
+    if (!(p.dot(rc) > 0.0) || !(r < gate)) continue;
+    eq.add(p, rc, n, matchRow(m, i), huber > 0.0 && r > huber ? huber / r : 1.0);
+  }
+  return eq;
+}
 
 // The matches and the scratch's arrays of the last rotateAll, for the passes.
 passes::MatchArrays matchArrays(const FrameMatches& m) {
@@ -193,6 +253,35 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
   return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
 }
 
+// The rotation and the covariance of a pure-rotation fit at (R, e): the covariance of (d, de) from
+// the unweighted inliers at the full gate, the rotation's block with the skew's marginalised out
+// (a Schur complement) when `skewed`.
+void setPureRotationFit(FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& e, bool skewed,
+                        double threshold, RefinedRotation* out) {
+  const RowSkewEquations eq = rowSkewEquations(m, R, e, kRotationGateScale * threshold, 0.0);
+  const Eigen::Matrix<double, 6, 6> H = eq.hessian(R);
+  Eigen::Matrix3d information = H.topLeftCorner<3, 3>();
+  if (skewed) {
+    const Eigen::FullPivLU<Eigen::Matrix3d> skew_block(H.bottomRightCorner<3, 3>());
+    if (skew_block.isInvertible())
+      information -= H.topRightCorner<3, 3>() * skew_block.inverse() * H.bottomLeftCorner<3, 3>();
+  }
+  out->rotation = R;
+  out->row_skew = e;
+  out->pure_rotation = true;
+  const double sigma2 = eq.sum_sq / std::max(1, 2 * eq.used - (skewed ? 6 : 3));
+  out->residual_sigma = std::sqrt(sigma2);
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(information);
+  out->covariance = lu.isInvertible() ? Eigen::Matrix3d(sigma2 * lu.inverse())
+                                      : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
+  if (!skewed) {
+    out->inliers = eq.used;
+    const size_t outside = m.size() - static_cast<size_t>(eq.used);
+    out->truncated_cost = eq.sum_sq + static_cast<double>(outside) * kRotationGateScale * threshold *
+                                          kRotationGateScale * threshold;
+  }
+}
+
 RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double threshold, int iterations) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
@@ -229,32 +318,7 @@ RefinedRotation refinePureRotation(FrameMatches& m, Eigen::Matrix3d R, double th
     R = next;
     if (change < 1e-10) break;
   }
-  // Covariance of the right perturbation R exp(d): residual b_prev x R exp(d) b_cur, Jacobian
-  // J = -[p]x R [c]x = -[p]x [Rc]x R, so J^T J = R^T K^T K R (PureRotationInformation) with the
-  // rotation applied once.
-  rotateAll(m, R);
-  const double gate2 = (kRotationGateScale * threshold) * (kRotationGateScale * threshold);
-  PureRotationInformation information;
-  double sum_sq = 0.0;
-  int inliers = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const double r2 = s.nx[i] * s.nx[i] + s.ny[i] * s.ny[i] + s.nz[i] * s.nz[i];
-    if (!usable(s, i) || r2 >= gate2) continue;
-    information.add(m.previous(i), Eigen::Vector3d(s.rx[i], s.ry[i], s.rz[i]));
-    sum_sq += r2;
-    ++inliers;
-  }
-  const Eigen::Matrix3d A = R.transpose() * information.sum() * R;
-  out.rotation = R;
-  out.inliers = inliers;
-  out.pure_rotation = true;
-  const double dof = std::max(1, 2 * inliers - 3);
-  const double sigma2 = sum_sq / dof;
-  out.residual_sigma = std::sqrt(sigma2);
-  out.truncated_cost = sum_sq + static_cast<double>(n - static_cast<size_t>(inliers)) * gate2;
-  Eigen::FullPivLU<Eigen::Matrix3d> lu(A);
-  out.covariance = lu.isInvertible() ? Eigen::Matrix3d(sigma2 * lu.inverse())
-                                     : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
+  setPureRotationFit(m, R, Eigen::Vector3d::Zero(), false, threshold, &out);
   return out;
 }
 
@@ -676,6 +740,28 @@ RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotat
   return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations, false);
 }
 
+bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {
+  if (!refined->pure_rotation) return false;
+  rotateAll(m, refined->rotation);
+  const double gate_width = adaptiveGate(m, nullptr, threshold);
+  Eigen::Matrix3d rotation = refined->rotation;
+  Eigen::Vector3d skew = Eigen::Vector3d::Zero();
+  for (int it = 0; it < kRowSkewIterations; ++it) {
+    const RowSkewEquations eq =
+        rowSkewEquations(m, rotation, skew, kRotationGateScale * gate_width, 0.5 * gate_width);
+    if (eq.used < kRowSkewMinMatches) return false;
+    const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(eq.hessian(rotation));
+    if (!lu.isInvertible()) return false;
+    const Eigen::Matrix<double, 6, 1> step = lu.solve(-eq.rhs(rotation));
+    if (!step.allFinite()) return false;
+    rotation = rotation * so3Exp(step.head<3>());
+    skew += step.tail<3>();
+    if (step.norm() < kConvergedRotation) break;
+  }
+  setPureRotationFit(m, rotation, skew, true, threshold, refined);
+  return true;
+}
+
 double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
                              double threshold) {
   rotateAll(m, rotation);
@@ -725,15 +811,27 @@ void spatialGroups(const FrameMatches& m, int k, std::vector<uint32_t>* order, s
   }
 }
 
-}  // namespace
-
-double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double threshold) {
+// Each match's squared residual under `refined` into scratch.residuals, its rotation's rotateAll
+// done: the pure-rotation one (with the row skew where fitted) or the epipolar one.
+void squaredResidualsOf(FrameMatches& m, const RefinedRotation& refined) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
   const bool pure = refined.pure_rotation || refined.translation.isZero();
   rotateAll(m, refined.rotation);
   s.residuals.resize(n);
   passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
+  if (!pure || refined.row_skew.isZero()) return;
+  for (size_t i = 0; i < n; ++i)
+    s.residuals[i] = m.previous(i).cross(skewRotated(m, i, refined.rotation, refined.row_skew)).squaredNorm();
+}
+
+}  // namespace
+
+double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double threshold) {
+  const size_t n = m.size();
+  FrameMatches::Scratch& s = m.scratch;
+  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  squaredResidualsOf(m, refined);
   const double gate = pure ? kRotationGateScale * threshold : threshold;
   std::vector<std::array<double, 2>>& points = s.plane;
   points.clear();
@@ -770,9 +868,9 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   FrameMatches::Scratch& s = m.scratch;
   const Eigen::Matrix3d& R = refined.rotation;
   const bool pure = refined.pure_rotation || refined.translation.isZero();
-  rotateAll(m, R);
-  s.residuals.resize(n);
-  passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
+  squaredResidualsOf(m, refined);
+  // A fitted row skew (never exactly zero) takes part as refinePureRotation fitted it.
+  const bool skewed = pure && !refined.row_skew.isZero();
   const double gate = pure ? kRotationGateScale * threshold : threshold;
   const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
   std::vector<uint32_t>& order = s.order;
@@ -790,24 +888,22 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   if (k < 2) return out;
   spatialGroups(m, k, &order, &s.group);
   const int groups = k * k;
-  Eigen::Matrix<double, 5, 5> A_group[kMaxGroups];
-  Eigen::Matrix<double, 5, 1> g_group[kMaxGroups];
+  Eigen::Matrix<double, 6, 6> A_group[kMaxGroups];
+  Eigen::Matrix<double, 6, 1> g_group[kMaxGroups];
   for (int g = 0; g < groups; ++g) {
     A_group[g].setZero();
     g_group[g].setZero();
   }
   if (pure) {
-    // Residual n = b_prev x R b_cur, J = -[p]x [Rc]x R: J^T J as in refinePureRotation's covariance,
-    // and J^T n = R^T (p . Rc) n; summed with R^T left out, applied once per group.
-    PureRotationInformation information[kMaxGroups];
+    // The equations of refinePureRotation's covariance, per group: unweighted, at (R, row skew).
+    std::array<RowSkewEquations, kMaxGroups> equations;
     for (uint32_t i : order) {
-      const Eigen::Vector3d p = m.previous(i), rc(s.rx[i], s.ry[i], s.rz[i]);
-      information[s.group[i]].add(p, rc);
-      g_group[s.group[i]].head<3>() += p.dot(rc) * Eigen::Vector3d(s.nx[i], s.ny[i], s.nz[i]);
+      const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, R, refined.row_skew);
+      equations[s.group[i]].add(p, rc, p.cross(rc), matchRow(m, i), 1.0);
     }
     for (int g = 0; g < groups; ++g) {
-      A_group[g].topLeftCorner<3, 3>() = R.transpose() * information[g].sum() * R;
-      g_group[g].head<3>() = R.transpose() * g_group[g].head<3>();
+      A_group[g] = equations[g].hessian(R);
+      g_group[g] = equations[g].rhs(R);
     }
   } else {
     // Each group's normal equations from the covariance's own summing pass, on the group alone,
@@ -827,24 +923,30 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
       s.gathered = gatherListed(m, s.members.data() + start[g], start[g + 1] - start[g], to);
       NormalEquations ne;
       accumulateEpipolar(gatheredInScratch(m), R, refined.translation, threshold, Weighting::kInliers, &ne);
-      A_group[g] = ne.A;
-      g_group[g] = ne.g;
+      A_group[g].topLeftCorner<5, 5>() = ne.A;
+      g_group[g].head<5>() = ne.g;
     }
   }
-  Eigen::Matrix<double, 5, 5> A = Eigen::Matrix<double, 5, 5>::Zero();
-  Eigen::Matrix<double, 5, 1> b = Eigen::Matrix<double, 5, 1>::Zero();
+  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   for (int g = 0; g < groups; ++g) {
     A += A_group[g];
     b += g_group[g];
   }
+  // The parameters: the rotation, then the row skew's three or the translation's two.
+  const int parameters = pure ? (skewed ? 6 : 3) : 5, fixed = 6 - parameters;
   // Each leave-one-out solution is one Gauss-Newton step on the rest from the full solution; the
   // full solution's own step (about zero at convergence) cancels in the spread about the mean.
   Eigen::Matrix<double, 3, kMaxGroups> steps;
   for (int g = 0; g < groups; ++g) {
-    Eigen::Matrix<double, 5, 5> rest = A - A_group[g];
-    if (pure) rest.bottomRightCorner<2, 2>().setIdentity();
+    Eigen::Matrix<double, 6, 6> rest = A - A_group[g];
+    Eigen::Matrix<double, 6, 1> rhs = -(b - g_group[g]);
+    rest.rightCols(fixed).setZero();
+    rest.bottomRows(fixed).setZero();
+    rest.bottomRightCorner(fixed, fixed).setIdentity();
+    rhs.tail(fixed).setZero();
     rest.diagonal().array() += 1e-12 * (rest.diagonal().array().abs() + 1e-12);
-    const Eigen::Matrix<double, 5, 1> step = rest.ldlt().solve(-(b - g_group[g]));
+    const Eigen::Matrix<double, 6, 1> step = rest.ldlt().solve(rhs);
     if (!step.allFinite()) return out;
     steps.col(g) = step.head<3>();
   }
@@ -879,6 +981,7 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
       VerifiedRotation start;
       start.rotation = refined.rotation;
       again = refineRotation(*rest, start, threshold, iterations, true);
+      if (!refined.row_skew.isZero()) fitRowSkew(*rest, &again, threshold);
     } else {
       again = refineMotion(*rest, refined.rotation, refined.translation, threshold, iterations);
     }

@@ -117,6 +117,11 @@ struct RefinedRotation {
   bool pure_rotation = false;  ///< refined as a pure rotation (no usable translation)
   /// Unit translation direction in the previous frame (general motion); zero for pure rotation.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  /// Pure rotation: how the rotation vector changes down the image [rad per unit of normalised row
+  /// y / z], as a rolling shutter shows it while the rate changes within the pair. Match i's
+  /// rotation is rotation * exp(s_i row_skew), s_i its mean normalised row over both views, so
+  /// `rotation` is that of the principal point's row. Zero unless fitRowSkew fitted it.
+  Eigen::Vector3d row_skew = Eigen::Vector3d::Zero();
   double residual_sigma = 0.0;  ///< RMS residual of the inliers [rad] (the covariance's sigma)
   /// Truncated quadratic cost over all the frame's matches [rad^2]: each inlier's squared residual,
   /// each other match the squared gate (MSAC's score, Torr and Zisserman). Comparable between
@@ -131,6 +136,14 @@ struct RefinedRotation {
 /// clearly more than a pure rotation -- the margin of the model selection in refineRotation -- and a
 /// pure rotation wins over a general motion unless that margin is met.
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
+
+/// Fits the row skew (RefinedRotation::row_skew) to a pure-rotation refinement: Gauss-Newton steps
+/// on (rotation, skew) from it, at its adaptive gate with Huber weights. The rotation becomes that
+/// of the principal point's row and the covariance the rotation's block with the skew marginalised
+/// out; inliers and truncated_cost stay the rigid fit's, which the model choice reads. False, and
+/// *refined unchanged, for a general motion, fewer than 100 matches within the gate, or rows that
+/// do not determine the skew.
+bool fitRowSkew(FrameMatches& matches, RefinedRotation* refined, double threshold);
 
 /// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
 /// matches as rotation + translation, minimises the angular residuals |b_prev x R b_cur| (robust

@@ -572,7 +572,7 @@ void VisualGyro::checkCalibrationFit(FrameResult* result) {
   if (!rotation.valid() || settings_.estimator.method != EstimationMethod::kVote) return;
   result->residual_correlation = residual_correlation_.compute(
       result->previous_bearings, result->current_bearings, rotation.rotation, rotation.translation,
-      1.0 / camera_.fx(), settings_.estimator.inlier_threshold_deg * kDegToRad);
+      1.0 / camera_.fx(), settings_.estimator.inlier_threshold_deg * kDegToRad, rotation.diagnostics.row_skew);
   calibration_fit_.add(result->residual_correlation);
   // Neither a rolling shutter nor a calibration that does not fit the images can be told apart by
   // the residuals alone, and under a rolling shutter the estimates stay good: the estimate is kept

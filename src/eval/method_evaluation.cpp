@@ -269,7 +269,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
   f << "frame,method,matches,valid,yaw_est_deg,yaw_true_deg,rot_err_deg,yaw_err_deg,rate_dps,estimate_ms,"
        "rate_err_dps,nees,sigma_deg,inliers,pure_rotation,prior_used,wide_vote,winner_source,candidates,"
        "rotation_inliers,epipolar_inliers,runner_up_inliers,valley,prior_offset_deg,residual_sigma_deg,effective_matches,near_miss_share,refit_jackknife,descriptor_areas,half_resolution,err_x_deg,err_y_deg,"
-       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,residual_correlation,error\n";
+       "err_z_deg,sigma_x_deg,sigma_y_deg,sigma_z_deg,t_x,t_y,t_z,residual_correlation,row_skew_deg,error\n";
   auto num = [](double v) -> std::string {
     if (!std::isfinite(v)) return "";
     char buf[32];
@@ -295,7 +295,7 @@ void writeFrameCsv(const std::string& path, const std::vector<MethodSummary>& al
       for (int k = 0; k < 3; ++k) f << ',' << num(e.error_vector_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.sigma_axes_deg[k]);
       for (int k = 0; k < 3; ++k) f << ',' << num(r.translation[k]);
-      f << ',' << num(r.residual_correlation);
+      f << ',' << num(r.residual_correlation) << ',' << num(r.diagnostics.row_skew.norm() * kRadToDeg);
       f << ",\"" << r.error << "\"\n";
     }
   }

@@ -141,7 +141,7 @@ class PlausibilityRunner : public MethodRunner {
   void judgeCalibration(const FramePair& pair, MethodEstimate* out) {
     out->residual_correlation =
         correlation_.compute(pair.previous, pair.current, out->rotation, out->translation, pixel_angle_rad_,
-                             settings_.estimator.inlier_threshold_deg * kDegToRad);
+                             settings_.estimator.inlier_threshold_deg * kDegToRad, out->diagnostics.row_skew);
     fit_.add(out->residual_correlation);
     if (out->has_covariance) out->covariance *= fit_.covarianceInflation();
   }
