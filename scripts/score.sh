@@ -4,8 +4,8 @@
 # their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches, both at
 # once, frames downscaled to a quarter); and rendered scenes (near structure, over four textures; a
 # dim blurred room, a blurred 1280 x 720 room, a hand-held room, the same through a phone-like
-# rolling shutter, also at half the frame rate). Each case runs with estimator seeds 1-3; the
-# per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
+# rolling shutter, also at half the frame rate, and drone_near through it). Each case runs with
+# estimator seeds 1-3; the per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
 # last line of JSON (also out/score/score.json).
 #
 # Kept to about 15 minutes on two cores by frame limits: at most SCORE_FRAMES pairs per case (default
@@ -114,6 +114,7 @@ render dim_blur15_720p --preset dim --blur 15 --jpeg 60 --width 1280 --height 72
 render handheld --preset handheld
 render handheld_rs --preset handheld_rs
 render handheld_rs_15hz --preset handheld_rs --rate 15
+render drone_near_rs --preset drone_near --rolling-shutter-ms 28
 
 # 2. The shared real sequences at their own rate.
 for name in kitti_turn kitti_straight euroc_v101_static euroc_mh01_shake; do
@@ -165,6 +166,8 @@ run_case handheld_rs "${OUT}/rendered/handheld_rs" \
   "rendered hand-held room through a rolling shutter (28 ms read-out; stamps and poses the middle row's), 30 Hz"
 run_case handheld_rs_15hz "${OUT}/rendered/handheld_rs_15hz" \
   "the same hand-held motion through the same rolling shutter at 15 Hz (twice the motion a pair)"
+run_case drone_near_rs "${OUT}/rendered/drone_near_rs" \
+  "rendered drone_near through a rolling shutter (28 ms read-out), 20 Hz: translation near structure"
 
 # 7. Summary.
 machine="$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -1), $(nproc) cores"

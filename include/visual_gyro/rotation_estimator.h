@@ -197,10 +197,10 @@ struct VoteDiagnostics {
   /// Descriptor patches the inliers' convex hull covers on the image plane (its area over the
   /// squared match footprint; kMinDescriptorAreas); NaN when the footprint is unknown.
   double descriptor_areas = std::numeric_limits<double>::quiet_NaN();
-  /// A pure rotation's change down the image [rad per unit of matchRow (geometry.h), camera frame]:
-  /// match i's rotation is rotation * exp(s_i row_skew), the result's rotation that of the principal
-  /// point's row. About zero for a global shutter, a rolling shutter's under a changing rate; zero
-  /// under general motion and where not fitted.
+  /// The rotation's change down the image [rad per unit of matchRow (geometry.h), camera frame], a
+  /// rolling shutter's under a changing rate: match i's rotation is rotation * exp(s_i row_skew),
+  /// the result's rotation that of the principal point's row. Zero where the matches did not call
+  /// for one (a global shutter, as a rule).
   Eigen::Vector3d row_skew = Eigen::Vector3d::Zero();
 };
 
@@ -337,6 +337,8 @@ class RotationEstimator {
 
   /// voter_->vote, with its host and device time added to the frame's vote times.
   void castVotes(const VoteRequest& request, VoteResult* votes);
+  /// Adds a frame's row-skew significance to the window; whether the skew is to be fitted.
+  bool rollingShutterSeen(double significance);
 
   EstimatorSettings settings_;
   bool refined_positions_ = false;
@@ -349,6 +351,7 @@ class RotationEstimator {
   std::unique_ptr<VoteResult> votes_;  // reused: no per-frame allocation once the histogram has its size
   std::unique_ptr<VoteWorkspace> workspace_;  // the vote method's per-frame arrays, reused likewise
   uint64_t frame_count_ = 0;
+  std::vector<double> skew_significance_;  // the last frames' row-skew significance, oldest first
 };
 
 /// Receives the factory's one warning (e.g. "CUDA unavailable: ...; using the CPU").

@@ -307,7 +307,7 @@ bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice*
   const Eigen::Matrix3d rigid = choice->winner.rotation;
   if (!fitRowSkew(matches, &choice->winner, threshold)) return false;
   for (RefinedRotation& c : choice->contenders)
-    if (c.pure_rotation && c.rotation == rigid) c = choice->winner;
+    if (c.pure_rotation == choice->winner.pure_rotation && c.rotation == rigid) c = choice->winner;
   return true;
 }
 

@@ -64,9 +64,9 @@ bool restartFromTranslations(FrameMatches& matches, double threshold, int iterat
 /// winner. True when it won.
 bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
 
-/// Once the refinements are chosen (on their rigid fits): a pure-rotation winner takes the row skew
-/// of a rolling shutter (fitRowSkew), and its own entry among the contenders follows it. True when
-/// a skew was fitted.
+/// Once the refinements are chosen (on their rigid fits): the winner takes the row skew of a
+/// rolling shutter where its matches call for one (fitRowSkew), and its own entry among the
+/// contenders follows it. True when a skew was fitted.
 bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice);
 
 }  // namespace visual_gyro

@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <tuple>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -19,12 +22,9 @@ constexpr double kTranslationGain = 0.15;
 // Levenberg-Marquardt stops when a step turns the rotation by less than this [rad] (3e-4 deg:
 // two orders of magnitude below the smallest rotation error on any sequence).
 constexpr double kConvergedRotation = 5e-6;
-// The row skew: Gauss-Newton steps from the rigid fit; the fewest matches it is fitted on (three
-// parameters more than the rotation, determined by how the rows spread: with fewer, under a global
-// shutter, whatever bias the few matches share turns into a skew, and the rotation at the principal
-// point's row moves with it).
+// The row skew: Gauss-Newton steps from the rigid fit (twice as many Levenberg-Marquardt steps
+// under general motion).
 constexpr int kRowSkewIterations = 5;
-constexpr int kRowSkewMinMatches = 100;
 
 // Two unit vectors orthogonal to t: the tangent plane in which t is updated.
 Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
@@ -740,28 +740,6 @@ RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotat
   return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations, false);
 }
 
-bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {
-  if (!refined->pure_rotation) return false;
-  rotateAll(m, refined->rotation);
-  const double gate_width = adaptiveGate(m, nullptr, threshold);
-  Eigen::Matrix3d rotation = refined->rotation;
-  Eigen::Vector3d skew = Eigen::Vector3d::Zero();
-  for (int it = 0; it < kRowSkewIterations; ++it) {
-    const RowSkewEquations eq =
-        rowSkewEquations(m, rotation, skew, kRotationGateScale * gate_width, 0.5 * gate_width);
-    if (eq.used < kRowSkewMinMatches) return false;
-    const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(eq.hessian(rotation));
-    if (!lu.isInvertible()) return false;
-    const Eigen::Matrix<double, 6, 1> step = lu.solve(-eq.rhs(rotation));
-    if (!step.allFinite()) return false;
-    rotation = rotation * so3Exp(step.head<3>());
-    skew += step.tail<3>();
-    if (step.norm() < kConvergedRotation) break;
-  }
-  setPureRotationFit(m, rotation, skew, true, threshold, refined);
-  return true;
-}
-
 double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
                              double threshold) {
   rotateAll(m, rotation);
@@ -811,6 +789,13 @@ void spatialGroups(const FrameMatches& m, int k, std::vector<uint32_t>* order, s
   }
 }
 
+// Match i's Sampson-normalised epipolar residual t . (b_prev x rc) / |grad| for its rotated current
+// bearing rc, and the scale 1 / |grad| (refineGeneral's, passes::epipolarChunk's).
+inline double sampsonScale(const Eigen::Vector3d& p, const Eigen::Vector3d& rc, const Eigen::Vector3d& t) {
+  const double tp = t.dot(p), trc = t.dot(rc);
+  return 1.0 / std::sqrt(std::max(1.0 - 0.5 * (tp * tp + trc * trc), 1e-6));
+}
+
 // Each match's squared residual under `refined` into scratch.residuals, its rotation's rotateAll
 // done: the pure-rotation one (with the row skew where fitted) or the epipolar one.
 void squaredResidualsOf(FrameMatches& m, const RefinedRotation& refined) {
@@ -820,12 +805,217 @@ void squaredResidualsOf(FrameMatches& m, const RefinedRotation& refined) {
   rotateAll(m, refined.rotation);
   s.residuals.resize(n);
   passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
-  if (!pure || refined.row_skew.isZero()) return;
-  for (size_t i = 0; i < n; ++i)
-    s.residuals[i] = m.previous(i).cross(skewRotated(m, i, refined.rotation, refined.row_skew)).squaredNorm();
+  if (refined.row_skew.isZero()) return;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, refined.rotation, refined.row_skew);
+    const double r = pure ? p.cross(rc).norm() : refined.translation.dot(p.cross(rc)) * sampsonScale(p, rc, refined.translation);
+    s.residuals[i] = r * r;
+  }
+}
+
+// The normal equations of the Sampson-normalised epipolar residuals r = t . (b_prev x R exp(s e)
+// b_cur) / |grad| in the step (R exp(d), t + B tau, e + de), as refineGeneral's (the Sampson scale
+// held fixed within a step) with the skew's three columns s J_d, summed in the rotated frame.
+struct SkewedEpipolarEquations {
+  Eigen::Matrix<double, 8, 8> A = Eigen::Matrix<double, 8, 8>::Zero();
+  Eigen::Matrix<double, 8, 1> g = Eigen::Matrix<double, 8, 1>::Zero();
+  double cost = 0.0;  // Tukey cost (kTukey) or the inliers' squared residuals (kInliers)
+  int used = 0;
+
+  void add(const Eigen::Vector3d& p, const Eigen::Vector3d& rc, const Eigen::Vector3d& t,
+           const Eigen::Matrix<double, 3, 2>& B, double s, double gate, Weighting weighting) {
+    const Eigen::Vector3d n = p.cross(rc);
+    const double scale = sampsonScale(p, rc, t), r = t.dot(n) * scale;
+    double w = 0.0;
+    if (weighting == Weighting::kTukey) {
+      const double u2 = std::min(1.0, (r / gate) * (r / gate));
+      w = (1.0 - u2) * (1.0 - u2);
+      cost += gate * gate / 6.0 * (1.0 - (1.0 - u2) * (1.0 - u2) * (1.0 - u2));
+      ++used;
+    } else if (std::abs(r) < gate && p.dot(rc) > 0.0) {
+      w = 1.0;
+      cost += r * r;
+      ++used;
+    }
+    if (w == 0.0) return;
+    const Eigen::Vector3d jd = rc.cross(t.cross(p));
+    Eigen::Matrix<double, 8, 1> j;
+    j << jd, n.dot(B.col(0)), n.dot(B.col(1)), s * jd;
+    A.noalias() += (w * scale * scale) * j * j.transpose();
+    g.noalias() += (w * r * scale) * j;
+  }
+  // A and g of the step (the rotation's and the skew's columns turned back from the rotated frame).
+  std::pair<Eigen::MatrixXd, Eigen::VectorXd> system(const Eigen::Matrix3d& R) const {
+    Eigen::Matrix<double, 8, 8> T = Eigen::Matrix<double, 8, 8>::Identity();
+    T.topLeftCorner<3, 3>() = R.transpose();
+    T.bottomRightCorner<3, 3>() = R.transpose();
+    return {T * A * T.transpose(), T * g};
+  }
+};
+
+// The equations of every match at (R, t, e); with `group`, each match within a group (>= 0) goes
+// to (*by_group)[group[i]] instead.
+SkewedEpipolarEquations skewedEpipolarEquations(const FrameMatches& m, const Eigen::Matrix3d& R,
+                                                const Eigen::Vector3d& t, const Eigen::Vector3d& e, double gate,
+                                                Weighting weighting, const std::vector<int>* group = nullptr,
+                                                std::vector<SkewedEpipolarEquations>* by_group = nullptr) {
+  SkewedEpipolarEquations eq;
+  const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
+  for (size_t i = 0; i < m.size(); ++i) {
+    if (group != nullptr && (*group)[i] < 0) continue;
+    SkewedEpipolarEquations& to = group != nullptr ? (*by_group)[(*group)[i]] : eq;
+    to.add(m.previous(i), skewRotated(m, i, R, e), t, B, matchRow(m, i), gate, weighting);
+  }
+  return eq;
+}
+
+// fitRowSkew for a general motion: Levenberg-Marquardt on (R, t, e) from the refinement, at its
+// adaptive gate with Tukey weights, as refineGeneral's last round.
+void fitGeneralRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Eigen::Vector3d* t,
+                       Eigen::Vector3d* e) {
+  rotateAll(m, *R);
+  const double gate = adaptiveGate(m, t, threshold);
+  SkewedEpipolarEquations here = skewedEpipolarEquations(m, *R, *t, *e, gate, Weighting::kTukey);
+  double lambda = 1e-6;
+  for (int it = 0; it < 2 * kRowSkewIterations; ++it) {
+    auto [A, g] = here.system(*R);
+    A.diagonal() += lambda * (A.diagonal().array() + 1e-12).matrix();
+    const Eigen::VectorXd step = A.ldlt().solve(-g);
+    if (!step.allFinite()) return;
+    const Eigen::Matrix3d R_new = *R * so3Exp(step.head<3>());
+    const Eigen::Vector3d t_new = (*t + tangentBasis(*t) * step.segment<2>(3)).normalized();
+    const Eigen::Vector3d e_new = *e + step.tail<3>();
+    const SkewedEpipolarEquations there = skewedEpipolarEquations(m, R_new, t_new, e_new, gate, Weighting::kTukey);
+    if (there.cost <= here.cost) {
+      *R = R_new, *t = t_new, *e = e_new;
+      here = there;
+      lambda = std::max(1e-9, lambda * 0.3);
+    } else if ((lambda *= 10.0) > 1e6) {
+      return;
+    }
+    if (step.head<3>().norm() < kConvergedRotation && step.tail<3>().norm() < kConvergedRotation) return;
+  }
+}
+
+// fitRowSkew for a pure rotation: Gauss-Newton steps on (R, e) from the rigid fit, at its adaptive
+// gate with its Huber weights. False where the rows do not determine e.
+bool fitPureRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Eigen::Vector3d* e) {
+  rotateAll(m, *R);
+  const double gate_width = adaptiveGate(m, nullptr, threshold);
+  for (int it = 0; it < kRowSkewIterations; ++it) {
+    const RowSkewEquations eq = rowSkewEquations(m, *R, *e, kRotationGateScale * gate_width, 0.5 * gate_width);
+    const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(eq.hessian(*R));
+    if (!lu.isInvertible()) return false;
+    const Eigen::Matrix<double, 6, 1> step = lu.solve(-eq.rhs(*R));
+    if (!step.allFinite()) return false;
+    *R = *R * so3Exp(step.head<3>());
+    *e += step.tail<3>();
+    if (step.norm() < kConvergedRotation) break;
+  }
+  return true;
+}
+
+// The group jackknife of a fit over `groups` spatial groups (group[i], -1: none) in the row skew's
+// model (pure: rotation, skew; general: rotation, translation, skew), from each group's unweighted
+// inliers at the full gate: the Gauss-Newton step of all the groups from the fit, and the
+// covariance of its parameters as the spread of the leave-one-group-out steps (the full step
+// cancels about their mean, so the spread holds at a fit that is no minimum in the skew: a rigid one).
+struct SkewJackknife {
+  Eigen::VectorXd step;
+  Eigen::MatrixXd spread;
+};
+
+SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, double threshold,
+                            const std::vector<int>& group, int groups) {
+  const int dim = fit.pure_rotation ? 6 : 8;
+  std::vector<Eigen::MatrixXd> A(groups);
+  std::vector<Eigen::VectorXd> g(groups);
+  if (fit.pure_rotation) {
+    std::vector<RowSkewEquations> by_group(groups);
+    for (size_t i = 0; i < m.size(); ++i) {
+      if (group[i] < 0) continue;
+      const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, fit.rotation, fit.row_skew), n = p.cross(rc);
+      if (p.dot(rc) > 0.0 && n.norm() < kRotationGateScale * threshold)
+        by_group[group[i]].add(p, rc, n, matchRow(m, i), 1.0);
+    }
+    for (int k = 0; k < groups; ++k) A[k] = by_group[k].hessian(fit.rotation), g[k] = by_group[k].rhs(fit.rotation);
+  } else {
+    std::vector<SkewedEpipolarEquations> by_group(groups);
+    skewedEpipolarEquations(m, fit.rotation, fit.translation, fit.row_skew, threshold, Weighting::kInliers, &group,
+                            &by_group);
+    for (int k = 0; k < groups; ++k) std::tie(A[k], g[k]) = by_group[k].system(fit.rotation);
+  }
+  Eigen::MatrixXd A_all = Eigen::MatrixXd::Zero(dim, dim);
+  Eigen::VectorXd g_all = Eigen::VectorXd::Zero(dim);
+  for (int k = 0; k < groups; ++k) A_all += A[k], g_all += g[k];
+  const auto solve = [](Eigen::MatrixXd a, const Eigen::VectorXd& b) -> Eigen::VectorXd {
+    a.diagonal().array() += 1e-12 * (a.diagonal().array().abs() + 1e-12);
+    return a.ldlt().solve(-b);
+  };
+  SkewJackknife out;
+  out.step = solve(A_all, g_all);
+  Eigen::MatrixXd steps(dim, groups);
+  for (int k = 0; k < groups; ++k) steps.col(k) = solve(A_all - A[k], g_all - g[k]);
+  const Eigen::MatrixXd centred = steps.colwise() - steps.rowwise().mean();
+  out.spread = centred * centred.transpose() * (static_cast<double>(groups - 1) / groups);
+  return out;
+}
+
+// The inliers of `fit` (scratch.order) in kMaxGroups spatial groups (scratch.group); false with too
+// few inliers for them.
+bool groupInliers(FrameMatches& m, const RefinedRotation& fit, double threshold) {
+  FrameMatches::Scratch& s = m.scratch;
+  squaredResidualsOf(m, fit);
+  const double gate = fit.pure_rotation ? kRotationGateScale * threshold : threshold;
+  s.order.clear();
+  for (size_t i = 0; i < m.size(); ++i)
+    if (usable(s, i) && s.residuals[i] < gate * gate) s.order.push_back(static_cast<uint32_t>(i));
+  if (jackknifeGroupsPerAxis(s.order.size()) < kMaxGroupsPerAxis) return false;
+  spatialGroups(m, kMaxGroupsPerAxis, &s.order, &s.group);
+  return true;
+}
+
+// The covariance of a general fit with a skew: sigma^2 (J^T J)^-1 over the unweighted inliers at
+// the full gate, its rotation block (the translation and the skew marginalised out).
+bool setGeneralSkewFit(FrameMatches& m, double threshold, RefinedRotation* fit) {
+  const SkewedEpipolarEquations eq =
+      skewedEpipolarEquations(m, fit->rotation, fit->translation, fit->row_skew, threshold, Weighting::kInliers);
+  const Eigen::MatrixXd A = eq.system(fit->rotation).first;
+  const Eigen::FullPivLU<Eigen::MatrixXd> lu(A);
+  if (!lu.isInvertible()) return false;
+  const double sigma2 = eq.cost / std::max(1, eq.used - 8);
+  fit->residual_sigma = std::sqrt(sigma2);
+  fit->covariance = sigma2 * lu.inverse().topLeftCorner<3, 3>();
+  return true;
 }
 
 }  // namespace
+
+// The jackknife sees the errors neighbouring matches share, which the statistical covariance does
+// not: a global shutter's spurious skews reach statistical chi^2 values in the hundreds.
+double rowSkewSignificance(FrameMatches& m, const RefinedRotation& rigid, double threshold) {
+  if (!groupInliers(m, rigid, threshold)) return std::numeric_limits<double>::quiet_NaN();
+  const SkewJackknife jack = skewJackknife(m, rigid, threshold, m.scratch.group, kMaxGroups);
+  const Eigen::Vector3d skew = jack.step.tail<3>();
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(jack.spread.bottomRightCorner<3, 3>());
+  if (!skew.allFinite() || !lu.isInvertible()) return std::numeric_limits<double>::quiet_NaN();
+  return skew.dot(lu.inverse() * skew);
+}
+
+bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {
+  RefinedRotation fit = *refined;
+  fit.row_skew.setZero();
+  if (fit.pure_rotation) {
+    if (!fitPureRowSkew(m, threshold, &fit.rotation, &fit.row_skew)) return false;
+    setPureRotationFit(m, fit.rotation, fit.row_skew, true, threshold, &fit);
+  } else {
+    fitGeneralRowSkew(m, threshold, &fit.rotation, &fit.translation, &fit.row_skew);
+    if (!setGeneralSkewFit(m, threshold, &fit)) return false;
+  }
+  if (fit.row_skew.isZero()) return false;
+  *refined = fit;
+  return true;
+}
 
 double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double threshold) {
   const size_t n = m.size();
@@ -869,8 +1059,8 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   const Eigen::Matrix3d& R = refined.rotation;
   const bool pure = refined.pure_rotation || refined.translation.isZero();
   squaredResidualsOf(m, refined);
-  // A fitted row skew (never exactly zero) takes part as refinePureRotation fitted it.
-  const bool skewed = pure && !refined.row_skew.isZero();
+  // A fitted row skew (never exactly zero) takes part as fitRowSkew fitted it.
+  const bool skewed = !refined.row_skew.isZero();
   const double gate = pure ? kRotationGateScale * threshold : threshold;
   const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
   std::vector<uint32_t>& order = s.order;
@@ -888,6 +1078,11 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   if (k < 2) return out;
   spatialGroups(m, k, &order, &s.group);
   const int groups = k * k;
+  if (skewed) {
+    out.covariance = skewJackknife(m, refined, threshold, s.group, groups).spread.topLeftCorner<3, 3>();
+    out.groups = groups;
+    return out;
+  }
   Eigen::Matrix<double, 6, 6> A_group[kMaxGroups];
   Eigen::Matrix<double, 6, 1> g_group[kMaxGroups];
   for (int g = 0; g < groups; ++g) {
@@ -895,10 +1090,10 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
     g_group[g].setZero();
   }
   if (pure) {
-    // The equations of refinePureRotation's covariance, per group: unweighted, at (R, row skew).
+    // The equations of refinePureRotation's covariance, per group: unweighted, at R.
     std::array<RowSkewEquations, kMaxGroups> equations;
     for (uint32_t i : order) {
-      const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, R, refined.row_skew);
+      const Eigen::Vector3d p = m.previous(i), rc = R * m.current(i);
       equations[s.group[i]].add(p, rc, p.cross(rc), matchRow(m, i), 1.0);
     }
     for (int g = 0; g < groups; ++g) {
@@ -933,8 +1128,8 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
     A += A_group[g];
     b += g_group[g];
   }
-  // The parameters: the rotation, then the row skew's three or the translation's two.
-  const int parameters = pure ? (skewed ? 6 : 3) : 5, fixed = 6 - parameters;
+  // The parameters: the rotation, then the translation's two.
+  const int parameters = pure ? 3 : 5, fixed = 6 - parameters;
   // Each leave-one-out solution is one Gauss-Newton step on the rest from the full solution; the
   // full solution's own step (about zero at convergence) cancels in the spread about the mean.
   Eigen::Matrix<double, 3, kMaxGroups> steps;
@@ -981,10 +1176,10 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
       VerifiedRotation start;
       start.rotation = refined.rotation;
       again = refineRotation(*rest, start, threshold, iterations, true);
-      if (!refined.row_skew.isZero()) fitRowSkew(*rest, &again, threshold);
     } else {
       again = refineMotion(*rest, refined.rotation, refined.translation, threshold, iterations);
     }
+    if (!refined.row_skew.isZero()) fitRowSkew(*rest, &again, threshold);
     moved[g] = so3Log(refined.rotation.transpose() * again.rotation);
     if (!moved[g].allFinite()) return out;
   }

@@ -117,8 +117,8 @@ struct RefinedRotation {
   bool pure_rotation = false;  ///< refined as a pure rotation (no usable translation)
   /// Unit translation direction in the previous frame (general motion); zero for pure rotation.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
-  /// Pure rotation: how the rotation vector changes down the image [rad per unit of normalised row
-  /// y / z], as a rolling shutter shows it while the rate changes within the pair. Match i's
+  /// How the rotation vector changes down the image [rad per unit of normalised row y / z], as a
+  /// rolling shutter shows it while the rate changes within the pair. Match i's
   /// rotation is rotation * exp(s_i row_skew), s_i its mean normalised row over both views, so
   /// `rotation` is that of the principal point's row. Zero unless fitRowSkew fitted it.
   Eigen::Vector3d row_skew = Eigen::Vector3d::Zero();
@@ -137,12 +137,22 @@ struct RefinedRotation {
 /// pure rotation wins over a general motion unless that margin is met.
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 
-/// Fits the row skew (RefinedRotation::row_skew) to a pure-rotation refinement: Gauss-Newton steps
-/// on (rotation, skew) from it, at its adaptive gate with Huber weights. The rotation becomes that
-/// of the principal point's row and the covariance the rotation's block with the skew marginalised
-/// out; inliers and truncated_cost stay the rigid fit's, which the model choice reads. False, and
-/// *refined unchanged, for a general motion, fewer than 100 matches within the gate, or rows that
-/// do not determine the skew.
+/// How strongly a rigid refinement's matches call for a row skew (RefinedRotation::row_skew):
+/// Hotelling's T^2 = e^T S^-1 e of the one Gauss-Newton step e from the rigid fit in the skew's
+/// model, S the spread of that step over a 16-group spatial jackknife of the inliers. NaN with fewer
+/// inliers than the 16 groups need (160).
+double rowSkewSignificance(FrameMatches& matches, const RefinedRotation& rigid, double threshold);
+
+/// The rowSkewSignificance beyond which the matches call for a skew: Hotelling's T^2 at 99.9 % for
+/// three parameters and 16 groups, 3 * 15 / 13 * F(3, 13; 0.999).
+constexpr double kRowSkewSignificance = 35.3;
+
+/// Fits the row skew to a refinement: Gauss-Newton (pure rotation, Huber weights) or
+/// Levenberg-Marquardt (general motion, with the translation, Tukey weights) on the skew's model
+/// from the rigid fit, at its adaptive gate. The rotation becomes that of the principal point's row
+/// and the covariance the rotation's block with the skew (and the translation) marginalised out;
+/// inliers and truncated_cost stay the rigid fit's, which the model choice reads. False, and
+/// *refined unchanged, where the rows do not determine the skew.
 bool fitRowSkew(FrameMatches& matches, RefinedRotation* refined, double threshold);
 
 /// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
