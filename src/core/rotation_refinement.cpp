@@ -25,6 +25,9 @@ constexpr double kConvergedRotation = 5e-6;
 // The row skew: Gauss-Newton steps from the rigid fit (twice as many Levenberg-Marquardt steps
 // under general motion).
 constexpr int kRowSkewIterations = 5;
+// The skew's systems: 6 (pure rotation) or 8 (general motion) parameters, on the stack.
+using SkewMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, 8>;
+using SkewVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8, 1>;
 
 // Two unit vectors orthogonal to t: the tangent plane in which t is updated.
 Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& t) {
@@ -845,7 +848,7 @@ struct SkewedEpipolarEquations {
     g.noalias() += (w * r * scale) * j;
   }
   // A and g of the step (the rotation's and the skew's columns turned back from the rotated frame).
-  std::pair<Eigen::MatrixXd, Eigen::VectorXd> system(const Eigen::Matrix3d& R) const {
+  std::pair<SkewMatrix, SkewVector> system(const Eigen::Matrix3d& R) const {
     Eigen::Matrix<double, 8, 8> T = Eigen::Matrix<double, 8, 8>::Identity();
     T.topLeftCorner<3, 3>() = R.transpose();
     T.bottomRightCorner<3, 3>() = R.transpose();
@@ -858,12 +861,12 @@ struct SkewedEpipolarEquations {
 SkewedEpipolarEquations skewedEpipolarEquations(const FrameMatches& m, const Eigen::Matrix3d& R,
                                                 const Eigen::Vector3d& t, const Eigen::Vector3d& e, double gate,
                                                 Weighting weighting, const std::vector<int>* group = nullptr,
-                                                std::vector<SkewedEpipolarEquations>* by_group = nullptr) {
+                                                SkewedEpipolarEquations* by_group = nullptr) {
   SkewedEpipolarEquations eq;
   const Eigen::Matrix<double, 3, 2> B = tangentBasis(t);
   for (size_t i = 0; i < m.size(); ++i) {
     if (group != nullptr && (*group)[i] < 0) continue;
-    SkewedEpipolarEquations& to = group != nullptr ? (*by_group)[(*group)[i]] : eq;
+    SkewedEpipolarEquations& to = group != nullptr ? by_group[(*group)[i]] : eq;
     to.add(m.previous(i), skewRotated(m, i, R, e), t, B, matchRow(m, i), gate, weighting);
   }
   return eq;
@@ -880,7 +883,7 @@ void fitGeneralRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Ei
   for (int it = 0; it < 2 * kRowSkewIterations; ++it) {
     auto [A, g] = here.system(*R);
     A.diagonal() += lambda * (A.diagonal().array() + 1e-12).matrix();
-    const Eigen::VectorXd step = A.ldlt().solve(-g);
+    const SkewVector step = A.ldlt().solve(-g);
     if (!step.allFinite()) return;
     const Eigen::Matrix3d R_new = *R * so3Exp(step.head<3>());
     const Eigen::Vector3d t_new = (*t + tangentBasis(*t) * step.segment<2>(3)).normalized();
@@ -921,17 +924,17 @@ bool fitPureRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Eigen
 // covariance of its parameters as the spread of the leave-one-group-out steps (the full step
 // cancels about their mean, so the spread holds at a fit that is no minimum in the skew: a rigid one).
 struct SkewJackknife {
-  Eigen::VectorXd step;
-  Eigen::MatrixXd spread;
+  SkewVector step;
+  SkewMatrix spread;
 };
 
 SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, double threshold,
                             const std::vector<int>& group, int groups) {
   const int dim = fit.pure_rotation ? 6 : 8;
-  std::vector<Eigen::MatrixXd> A(groups);
-  std::vector<Eigen::VectorXd> g(groups);
+  std::array<SkewMatrix, kMaxGroups> A;
+  std::array<SkewVector, kMaxGroups> g;
   if (fit.pure_rotation) {
-    std::vector<RowSkewEquations> by_group(groups);
+    std::array<RowSkewEquations, kMaxGroups> by_group;
     for (size_t i = 0; i < m.size(); ++i) {
       if (group[i] < 0) continue;
       const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, fit.rotation, fit.row_skew), n = p.cross(rc);
@@ -940,24 +943,26 @@ SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, d
     }
     for (int k = 0; k < groups; ++k) A[k] = by_group[k].hessian(fit.rotation), g[k] = by_group[k].rhs(fit.rotation);
   } else {
-    std::vector<SkewedEpipolarEquations> by_group(groups);
+    std::array<SkewedEpipolarEquations, kMaxGroups> by_group;
     skewedEpipolarEquations(m, fit.rotation, fit.translation, fit.row_skew, threshold, Weighting::kInliers, &group,
-                            &by_group);
+                            by_group.data());
     for (int k = 0; k < groups; ++k) std::tie(A[k], g[k]) = by_group[k].system(fit.rotation);
   }
-  Eigen::MatrixXd A_all = Eigen::MatrixXd::Zero(dim, dim);
-  Eigen::VectorXd g_all = Eigen::VectorXd::Zero(dim);
+  SkewMatrix A_all = SkewMatrix::Zero(dim, dim);
+  SkewVector g_all = SkewVector::Zero(dim);
   for (int k = 0; k < groups; ++k) A_all += A[k], g_all += g[k];
-  const auto solve = [](Eigen::MatrixXd a, const Eigen::VectorXd& b) -> Eigen::VectorXd {
+  const auto solve = [](SkewMatrix a, const SkewVector& b) -> SkewVector {
     a.diagonal().array() += 1e-12 * (a.diagonal().array().abs() + 1e-12);
     return a.ldlt().solve(-b);
   };
   SkewJackknife out;
   out.step = solve(A_all, g_all);
-  Eigen::MatrixXd steps(dim, groups);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, kMaxGroups> steps(dim, groups);
   for (int k = 0; k < groups; ++k) steps.col(k) = solve(A_all - A[k], g_all - g[k]);
-  const Eigen::MatrixXd centred = steps.colwise() - steps.rowwise().mean();
-  out.spread = centred * centred.transpose() * (static_cast<double>(groups - 1) / groups);
+  const SkewVector mean = steps.rowwise().mean();
+  out.spread = SkewMatrix::Zero(dim, dim);
+  for (int k = 0; k < groups; ++k) out.spread.noalias() += (steps.col(k) - mean) * (steps.col(k) - mean).transpose();
+  out.spread *= static_cast<double>(groups - 1) / groups;
   return out;
 }
 
@@ -980,8 +985,8 @@ bool groupInliers(FrameMatches& m, const RefinedRotation& fit, double threshold)
 bool setGeneralSkewFit(FrameMatches& m, double threshold, RefinedRotation* fit) {
   const SkewedEpipolarEquations eq =
       skewedEpipolarEquations(m, fit->rotation, fit->translation, fit->row_skew, threshold, Weighting::kInliers);
-  const Eigen::MatrixXd A = eq.system(fit->rotation).first;
-  const Eigen::FullPivLU<Eigen::MatrixXd> lu(A);
+  const SkewMatrix A = eq.system(fit->rotation).first;
+  const Eigen::FullPivLU<SkewMatrix> lu(A);
   if (!lu.isInvertible()) return false;
   const double sigma2 = eq.cost / std::max(1, eq.used - 8);
   fit->residual_sigma = std::sqrt(sigma2);
