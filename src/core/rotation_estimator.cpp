@@ -495,7 +495,8 @@ bool RotationEstimator::rollingShutterSeen(double significance) {
   skew_significance_.push_back(significance);
   if (skew_significance_.size() > kRowSkewWindowFrames) skew_significance_.erase(skew_significance_.begin());
   if (skew_significance_.size() < kRowSkewWindowFrames) return false;
-  std::vector<double> sorted = skew_significance_;
+  std::array<double, kRowSkewWindowFrames> sorted;
+  std::copy(skew_significance_.begin(), skew_significance_.end(), sorted.begin());
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   return significance > kRowSkewSignificance && sorted[sorted.size() / 2] > kRowSkewSignificance;
 }

@@ -96,21 +96,26 @@ struct RowSkewEquations {
   }
 };
 
-// Match i's rotated current bearing R exp(s_i e) b_cur.
-inline Eigen::Vector3d skewRotated(const FrameMatches& m, size_t i, const Eigen::Matrix3d& R, const Eigen::Vector3d& e) {
-  return R * deskewed(m.current(i), matchRow(m, i) * e);
+// Match i's rotated current bearing R exp(s e) b_cur, s its row (matchRow).
+inline Eigen::Vector3d skewRotated(const FrameMatches& m, size_t i, double s, const Eigen::Matrix3d& R,
+                                   const Eigen::Vector3d& e) {
+  return R * deskewed(m.current(i), s * e);
 }
 
 // The equations of the matches in the same hemisphere within `gate` [rad] at (R, e), Huber-weighted
-// beyond `huber` (0: unweighted).
+// beyond `huber` (0: unweighted); with `group`, each match within a group (>= 0) goes to
+// by_group[group[i]] instead.
 RowSkewEquations rowSkewEquations(const FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::Vector3d& e,
-                                  double gate, double huber) {
+                                  double gate, double huber, const std::vector<int>* group = nullptr,
+                                  RowSkewEquations* by_group = nullptr) {
   RowSkewEquations eq;
   for (size_t i = 0; i < m.size(); ++i) {
-    const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, R, e), n = p.cross(rc);
+    if (group != nullptr && (*group)[i] < 0) continue;
+    const double s = matchRow(m, i);
+    const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, s, R, e), n = p.cross(rc);
     const double r = n.norm();
     if (!(p.dot(rc) > 0.0) || !(r < gate)) continue;
-    eq.add(p, rc, n, matchRow(m, i), huber > 0.0 && r > huber ? huber / r : 1.0);
+    (group != nullptr ? by_group[(*group)[i]] : eq).add(p, rc, n, s, huber > 0.0 && r > huber ? huber / r : 1.0);
   }
   return eq;
 }
@@ -810,7 +815,7 @@ void squaredResidualsOf(FrameMatches& m, const RefinedRotation& refined) {
   passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
   if (refined.row_skew.isZero()) return;
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, refined.rotation, refined.row_skew);
+    const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, matchRow(m, i), refined.rotation, refined.row_skew);
     const double r = pure ? p.cross(rc).norm() : refined.translation.dot(p.cross(rc)) * sampsonScale(p, rc, refined.translation);
     s.residuals[i] = r * r;
   }
@@ -867,7 +872,8 @@ SkewedEpipolarEquations skewedEpipolarEquations(const FrameMatches& m, const Eig
   for (size_t i = 0; i < m.size(); ++i) {
     if (group != nullptr && (*group)[i] < 0) continue;
     SkewedEpipolarEquations& to = group != nullptr ? by_group[(*group)[i]] : eq;
-    to.add(m.previous(i), skewRotated(m, i, R, e), t, B, matchRow(m, i), gate, weighting);
+    const double s = matchRow(m, i);
+    to.add(m.previous(i), skewRotated(m, i, s, R, e), t, B, s, gate, weighting);
   }
   return eq;
 }
@@ -935,12 +941,7 @@ SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, d
   std::array<SkewVector, kMaxGroups> g;
   if (fit.pure_rotation) {
     std::array<RowSkewEquations, kMaxGroups> by_group;
-    for (size_t i = 0; i < m.size(); ++i) {
-      if (group[i] < 0) continue;
-      const Eigen::Vector3d p = m.previous(i), rc = skewRotated(m, i, fit.rotation, fit.row_skew), n = p.cross(rc);
-      if (p.dot(rc) > 0.0 && n.norm() < kRotationGateScale * threshold)
-        by_group[group[i]].add(p, rc, n, matchRow(m, i), 1.0);
-    }
+    rowSkewEquations(m, fit.rotation, fit.row_skew, kRotationGateScale * threshold, 0.0, &group, by_group.data());
     for (int k = 0; k < groups; ++k) A[k] = by_group[k].hessian(fit.rotation), g[k] = by_group[k].rhs(fit.rotation);
   } else {
     std::array<SkewedEpipolarEquations, kMaxGroups> by_group;
