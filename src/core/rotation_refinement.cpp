@@ -1098,10 +1098,7 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   if (pure) {
     // The equations of refinePureRotation's covariance, per group: unweighted, at R.
     std::array<RowSkewEquations, kMaxGroups> equations;
-    for (uint32_t i : order) {
-      const Eigen::Vector3d p = m.previous(i), rc = R * m.current(i);
-      equations[s.group[i]].add(p, rc, p.cross(rc), matchRow(m, i), 1.0);
-    }
+    rowSkewEquations(m, R, Eigen::Vector3d::Zero(), gate, 0.0, &s.group, equations.data());
     for (int g = 0; g < groups; ++g) {
       A_group[g] = equations[g].hessian(R);
       g_group[g] = equations[g].rhs(R);
