@@ -1055,6 +1055,16 @@ TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
   EXPECT_TRUE(b.diagnostics.row_skew.isZero());
   EXPECT_LT(vg::rotationAngleBetween(R, a.rotation), 0.2 * vg::rotationAngleBetween(R, b.rotation));
   EXPECT_STREQ(vg::votePartName(vg::VotePart::kRowSkew), "row_skew");
+  // A stream that starts through a rolling shutter is judged from its kRowSkewMinFrames-th frame
+  // on, by the median of the frames it has.
+  auto fresh = vg::createRotationEstimator(cpuSettings("vote"));
+  first_skewed = -1;
+  for (int k = 0; k < static_cast<int>(vg::kRowSkewWindowFrames); ++k) {
+    a = run(*fresh, skew, 300 + k);
+    if (first_skewed < 0 && !a.diagnostics.row_skew.isZero()) first_skewed = k;
+  }
+  EXPECT_EQ(first_skewed, static_cast<int>(vg::kRowSkewMinFrames) - 1);
+  EXPECT_LT((a.diagnostics.row_skew - skew).norm(), 0.03 * kDeg);
 }
 
 TEST(InlierHull, AreaOfTheInliersOnTheImagePlane) {

@@ -31,8 +31,6 @@ namespace visual_gyro {
 namespace {
 
 constexpr double kDeg = kDegToRad;
-// The frames over which a rolling shutter is judged: the calibration check's window.
-constexpr size_t kRowSkewWindowFrames = kFitWindowFrames;
 
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -486,19 +484,21 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
 // ---------------------------------------------------------------------------------------------
 
 // A rolling shutter belongs to the camera: a frame takes the skew when its matches call for one and
-// the median over the last kRowSkewWindowFrames frames does too, judged once the window is full as
-// the calibration check is. On hard footage through a global shutter a few frames' matches call
-// for a skew, which then only absorbs other errors (a frame of euroc_mh01_shake at stride 3: 0.06
-// -> 0.32 deg).
+// the median over the last kRowSkewWindowFrames frames does too. On hard footage through a global
+// shutter one or two frames in thirty call for a skew, which then only absorbs other errors (a
+// frame of euroc_mh01_shake at stride 3: 0.06 -> 0.32 deg); a median over five frames needs three
+// such frames, so a stream is judged from its fifth frame on rather than after a full window,
+// whose first frames a rolling shutter would otherwise leave unmodelled.
 bool RotationEstimator::rollingShutterSeen(double significance) {
   if (!std::isfinite(significance)) return false;
   skew_significance_.push_back(significance);
   if (skew_significance_.size() > kRowSkewWindowFrames) skew_significance_.erase(skew_significance_.begin());
-  if (skew_significance_.size() < kRowSkewWindowFrames) return false;
+  const size_t judged = skew_significance_.size();
+  if (judged < kRowSkewMinFrames) return false;
   std::array<double, kRowSkewWindowFrames> sorted;
   std::copy(skew_significance_.begin(), skew_significance_.end(), sorted.begin());
-  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-  return significance > kRowSkewSignificance && sorted[sorted.size() / 2] > kRowSkewSignificance;
+  std::nth_element(sorted.begin(), sorted.begin() + judged / 2, sorted.begin() + judged);
+  return significance > kRowSkewSignificance && sorted[judged / 2] > kRowSkewSignificance;
 }
 
 bool cudaBackendCompiled() {

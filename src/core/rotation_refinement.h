@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "visual_gyro/calibration_fit.h"
+
 namespace visual_gyro {
 
 /// One frame's matches as structure-of-arrays, filled once per frame and read by every
@@ -146,6 +148,11 @@ double rowSkewSignificance(FrameMatches& matches, const RefinedRotation& rigid, 
 /// The rowSkewSignificance beyond which the matches call for a skew: Hotelling's T^2 at 99.9 % for
 /// three parameters and 16 groups, 3 * 15 / 13 * F(3, 13; 0.999).
 constexpr double kRowSkewSignificance = 35.3;
+/// Frames (with a judged significance) over which a stream's rolling shutter is judged: the median
+/// of their rowSkewSignificance must exceed kRowSkewSignificance too (the calibration check's window).
+constexpr size_t kRowSkewWindowFrames = kFitWindowFrames;
+/// Frames judged before the first skew: the window's median is read from this many frames on.
+constexpr size_t kRowSkewMinFrames = 5;
 
 /// Fits the row skew to a refinement: Gauss-Newton (pure rotation, Huber weights) or
 /// Levenberg-Marquardt (general motion, with the translation, Tukey weights) on the skew's model
