@@ -1065,6 +1065,17 @@ TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
   }
   EXPECT_EQ(first_skewed, static_cast<int>(vg::kRowSkewMinFrames) - 1);
   EXPECT_LT((a.diagnostics.row_skew - skew).norm(), 0.03 * kDeg);
+  // Once the camera is judged, a frame at a steady rate, whose own matches call for no skew, is
+  // fitted with one too: about zero, and the rotation as accurate.
+  bool fitted = false;
+  double significance = 0.0;
+  refinedWithSkew(rowSkewedScene(R, Vector3d::Zero(), 500, 0.2e-3, 400), R, Vector3d::Zero(), false, &fitted,
+                  nullptr, &significance);
+  EXPECT_LT(significance, vg::kRowSkewSignificance);
+  const vg::RotationResult steady_result = run(*fresh, Vector3d::Zero(), 400);
+  EXPECT_FALSE(steady_result.diagnostics.row_skew.isZero());
+  EXPECT_LT(steady_result.diagnostics.row_skew.norm(), 0.03 * kDeg);
+  EXPECT_LT(vg::rotationAngleBetween(R, steady_result.rotation), 0.01 * kDeg);
 }
 
 TEST(InlierHull, AreaOfTheInliersOnTheImagePlane) {

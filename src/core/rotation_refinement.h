@@ -149,7 +149,8 @@ double rowSkewSignificance(FrameMatches& matches, const RefinedRotation& rigid, 
 /// three parameters and 16 groups, 3 * 15 / 13 * F(3, 13; 0.999).
 constexpr double kRowSkewSignificance = 35.3;
 /// Frames (with a judged significance) over which a stream's rolling shutter is judged: the median
-/// of their rowSkewSignificance must exceed kRowSkewSignificance too (the calibration check's window).
+/// of their rowSkewSignificance exceeds kRowSkewSignificance on a rolling-shutter camera (the
+/// calibration check's window), and every frame with a judged significance then takes the skew.
 constexpr size_t kRowSkewWindowFrames = kFitWindowFrames;
 /// Frames judged before the first skew: the window's median is read from this many frames on.
 constexpr size_t kRowSkewMinFrames = 5;
