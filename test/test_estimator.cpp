@@ -1025,6 +1025,40 @@ TEST(CandidateRefinement, WinnerTakesTheRowSkewAndItsContenderEntryFollows) {
   EXPECT_EQ(choice.contenders[1].rotation, other.rotation);
 }
 
+// A skew the stream has not confirmed: the winner stays rigid, its skewed fit joins the contenders
+// with the same inliers, and the covariance then covers the rotation the skew would move.
+TEST(CandidateRefinement, AnUnconfirmedRowSkewWidensTheCovariance) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.5 * kDeg, 0.0);
+  const Scene s = rowSkewedScene(R, Vector3d(0.3, 0.2, -0.1) * kDeg, 300, 0.2e-3, 5);
+  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
+  vg::FrameMatches matches, refit;
+  matches.assign(s.previous, s.current);
+  vg::VerifiedRotation verified;
+  verified.rotation = R;
+  vg::RefinementChoice choice;
+  choice.winner = vg::refineRotation(matches, verified, threshold, 10);
+  choice.contenders = {choice.winner};
+  const vg::RefinedRotation rigid = choice.winner;
+  vg::CovarianceInput in;
+  in.threshold = threshold;
+  in.iterations = 10;
+  vg::VoteDiagnostics d;
+  const Matrix3d before = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d);
+  ASSERT_TRUE(vg::addRowSkewContender(matches, threshold, &choice));
+  EXPECT_EQ(choice.winner.rotation, rigid.rotation);
+  EXPECT_TRUE(choice.winner.row_skew.isZero());
+  ASSERT_EQ(choice.contenders.size(), 2u);
+  EXPECT_FALSE(choice.contenders[1].row_skew.isZero());
+  EXPECT_EQ(choice.contenders[1].inliers, rigid.inliers);
+  const Vector3d moved = vg::so3Log(rigid.rotation.transpose() * choice.contenders[1].rotation);
+  ASSERT_GT(moved.norm(), 0.02 * kDeg);
+  const Matrix3d after = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d);
+  // Along the move, the variance grows by half its square (the winner and the skewed fit as a
+  // mixture of two equally likely rotations).
+  const Vector3d u = moved.normalized();
+  EXPECT_NEAR(u.dot(after * u) - u.dot(before * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
+}
+
 // The estimator's part: on by default, judged over a window of frames as a property of the camera,
 // reported in the diagnostics, off in the ablation.
 TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
@@ -1062,6 +1096,9 @@ TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
   for (int k = 0; k < static_cast<int>(vg::kRowSkewWindowFrames); ++k) {
     a = run(*fresh, skew, 300 + k);
     if (first_skewed < 0 && !a.diagnostics.row_skew.isZero()) first_skewed = k;
+    // Before then each frame keeps its rigid fit, with a covariance that covers its error.
+    const Vector3d error = vg::so3Log(R.transpose() * a.rotation);
+    EXPECT_LT(error.dot(a.covariance.inverse() * error), 11.34) << "frame " << k;  // chi^2_3 at 99 %
   }
   EXPECT_EQ(first_skewed, static_cast<int>(vg::kRowSkewMinFrames) - 1);
   EXPECT_LT((a.diagnostics.row_skew - skew).norm(), 0.03 * kDeg);

@@ -311,4 +311,11 @@ bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice*
   return true;
 }
 
+bool addRowSkewContender(FrameMatches& matches, double threshold, RefinementChoice* choice) {
+  RefinedRotation skewed = choice->winner;
+  if (!fitRowSkew(matches, &skewed, threshold)) return false;
+  choice->contenders.push_back(skewed);
+  return true;
+}
+
 }  // namespace visual_gyro

@@ -69,4 +69,9 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
 /// contenders follows it. True when a skew was fitted.
 bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice);
 
+/// Where a frame's matches call for a row skew that its stream has not confirmed: the winner stays
+/// rigid and its skewed fit joins the contenders, with the same inliers, so that the covariance's
+/// contenders' spread covers the rotation the skew would move. True when it joined.
+bool addRowSkewContender(FrameMatches& matches, double threshold, RefinementChoice* choice);
+
 }  // namespace visual_gyro
