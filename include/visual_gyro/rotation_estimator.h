@@ -109,14 +109,9 @@ inline double rotationCovarianceFloor(bool refined_positions) {
 /// such shared errors, sees them only between groups of matches that share no patch. When all the
 /// inliers lie within a few patches of one another (in a small image the descriptor's border
 /// leaves a band across its middle), those errors neither average out nor show, and the estimate
-/// is further off than its covariance says. The value 8 is measured, on the shared sequences
-/// downscaled with evaluate --scale (2026-12-04, before this check existed), from the hull of a
-/// frame's matches: honest at 8.2-9.2 patches (kitti_turn at scale 0.2, NEES mean 1.06) and at
-/// 9.2-11 (euroc_mh01_shake at 0.2, NEES 2.0); over-confident at 5.9-7.1 (euroc_mh01_shake at
-/// 0.175: 6-12 % of the frames beyond the 99 % bound, seeds 1-2) and below on kitti_turn and
-/// euroc_mh01_shake (scales 0.15 and 0.1, 2-4 patches and fewer: NEES mean 3.9-22, 8-44 % beyond).
-/// kitti_straight stayed honest at 0.15 (its forward motion has no rotation to confuse with
-/// translation); its frames there are invalid too.
+/// is further off than its covariance says. The value 8 is measured on the shared sequences
+/// downscaled (doc/covariance.md, Resolution): frames covering 8.2 patches and more were honest,
+/// 5.9-7.1 patches over-confident.
 constexpr double kMinDescriptorAreas = 8.0;
 
 /// Every estimator setting with its range, unit and doc (see setting_field.h).
@@ -262,8 +257,6 @@ class PriorTracker {
   double last_dt_ = 0.0;
 };
 
-/// Estimates the frame-to-frame rotation from matched unit bearings. Not thread-safe; one per
-/// stream of frames. Never throws on bad input: it returns an invalid result whose status names the problem.
 /// Parts of the vote method that can be switched off one at a time, to measure on `make score`
 /// what each earns (evaluate's `vote-without-<part>` methods; doc/evaluation.md's ablation).
 /// Every part is on unless RotationEstimator::setDisabledParts says otherwise; not a setting.
@@ -286,6 +279,8 @@ const char* votePartName(VotePart part);
 /// Parses a votePartName(); false when `name` names no part.
 bool parseVotePart(const std::string& name, VotePart* part);
 
+/// Estimates the frame-to-frame rotation from matched unit bearings. Not thread-safe; one per
+/// stream of frames. Never throws on bad input: it returns an invalid result whose status names the problem.
 class RotationEstimator {
  public:
   /// Uses `voter` for the hypotheses; see createRotationEstimator for the usual way to make one.

@@ -6,11 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
-#include <iterator>
-#include <limits>
 #include <sstream>
 #include <stdexcept>
-#include <string_view>
 #include <utility>
 
 #include <Eigen/Dense>
@@ -20,7 +17,6 @@
 #include "rotation_refinement.h"
 #include "vote_candidates.h"
 #include "vote_covariance.h"
-#include "visual_gyro/calibration_fit.h"
 
 #ifdef VISUAL_GYRO_WITH_CUDA
 #include "cuda_voter.h"
@@ -34,6 +30,11 @@ constexpr double kDeg = kDegToRad;
 
 double elapsedMs(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void requireValidSettings(const EstimatorSettings& settings) {
+  const std::string problem = validateSettings(settings);
+  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
 }
 
 RotationResult invalidResult(FrameStatus status, const std::string& why) {
@@ -130,14 +131,22 @@ const char* votePartName(VotePart part) {
   return "";
 }
 
-bool parseVotePart(const std::string& name, VotePart* part) {
-  for (int k = 0; k < static_cast<int>(VotePart::kCount); ++k) {
-    if (name == votePartName(static_cast<VotePart>(k))) {
-      *part = static_cast<VotePart>(k);
+// The value among `values` whose name (nameOf) is `name`.
+template <typename Enum, typename Values, typename NameOf>
+bool parseNamed(const std::string& name, const Values& values, NameOf nameOf, Enum* out) {
+  for (const Enum value : values) {
+    if (name == nameOf(value)) {
+      *out = value;
       return true;
     }
   }
   return false;
+}
+
+bool parseVotePart(const std::string& name, VotePart* part) {
+  std::array<VotePart, static_cast<size_t>(VotePart::kCount)> parts;
+  for (size_t k = 0; k < parts.size(); ++k) parts[k] = static_cast<VotePart>(k);
+  return parseNamed(name, parts, votePartName, part);
 }
 
 const char* methodName(EstimationMethod method) {
@@ -154,23 +163,12 @@ const char* backendChoiceName(BackendChoice backend) {
 }
 
 bool parseMethod(const std::string& name, EstimationMethod* method) {
-  for (const EstimationMethod m : {EstimationMethod::kVote, EstimationMethod::kPaper}) {
-    if (name == methodName(m)) {
-      *method = m;
-      return true;
-    }
-  }
-  return false;
+  return parseNamed(name, std::array{EstimationMethod::kVote, EstimationMethod::kPaper}, methodName, method);
 }
 
 bool parseBackendChoice(const std::string& name, BackendChoice* backend) {
-  for (const BackendChoice b : {BackendChoice::kAuto, BackendChoice::kCpu, BackendChoice::kCuda}) {
-    if (name == backendChoiceName(b)) {
-      *backend = b;
-      return true;
-    }
-  }
-  return false;
+  return parseNamed(name, std::array{BackendChoice::kAuto, BackendChoice::kCpu, BackendChoice::kCuda},
+                    backendChoiceName, backend);
 }
 
 const std::vector<SettingField<EstimatorSettings>>& estimatorSettingFields() {
@@ -240,8 +238,7 @@ RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
       voter_(std::move(voter)),
       votes_(std::make_unique<VoteResult>()),
       workspace_(std::make_unique<VoteWorkspace>()) {
-  const std::string problem = validateSettings(settings_);
-  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  requireValidSettings(settings_);
   if (!voter_) throw std::invalid_argument("RotationEstimator needs a voter");
   backend_ = backendNamed(voter_->name());
 }
@@ -249,8 +246,7 @@ RotationEstimator::RotationEstimator(const EstimatorSettings& settings,
 RotationEstimator::~RotationEstimator() = default;
 
 void RotationEstimator::setSettings(const EstimatorSettings& settings) {
-  const std::string problem = validateSettings(settings);
-  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  requireValidSettings(settings);
   settings_ = settings;
 }
 
@@ -373,18 +369,9 @@ const Eigen::Vector3d* usablePrior(const EstimatorSettings& settings, const Rota
 // What the voting stage reads of this frame.
 CandidateVoteInput candidateInput(const RotationEstimator& estimator, VoteWorkspace& w, uint64_t seed,
                                   const Eigen::Vector3d* prior, double needed) {
-  CandidateVoteInput input;
-  input.settings = &estimator.settings();
-  input.prev = &w.prev;
-  input.cur = &w.cur;
-  input.matches = &w.matches;
-  input.seed = seed;
-  input.prior = prior;
-  input.needed = needed;
-  input.wide_vote = estimator.partEnabled(VotePart::kWideVote);
-  input.prior_candidate = estimator.partEnabled(VotePart::kPriorCandidate);
-  input.identity_candidate = estimator.partEnabled(VotePart::kIdentityCandidate);
-  return input;
+  return {&estimator.settings(), &w.prev, &w.cur, &w.matches, seed, prior, needed,
+          estimator.partEnabled(VotePart::kWideVote), estimator.partEnabled(VotePart::kPriorCandidate),
+          estimator.partEnabled(VotePart::kIdentityCandidate)};
 }
 
 void fillVoteDiagnostics(const CandidateVote& vote, const RefinementChoice& choice, const Eigen::Vector3d* prior,
@@ -528,8 +515,7 @@ bool cudaBackendUsable(std::string* why) {
 
 std::unique_ptr<RotationEstimator> createRotationEstimator(const EstimatorSettings& settings,
                                                            const WarningSink& warn) {
-  const std::string problem = validateSettings(settings);
-  if (!problem.empty()) throw std::invalid_argument("invalid estimator settings: " + problem);
+  requireValidSettings(settings);
   std::unique_ptr<HypothesisVoter> voter;
   if (settings.backend != BackendChoice::kCpu) {
 #ifdef VISUAL_GYRO_WITH_CUDA

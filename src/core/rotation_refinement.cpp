@@ -261,6 +261,19 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
   return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
 }
 
+// The covariance sigma^2 A^-1 of a fit's rotation (A's first three parameters; the others, such as
+// a translation or a skew, marginalised out), sigma^2 = cost / dof. False, the covariance left as it
+// was, where A is singular.
+template <typename Matrix>
+bool setFitCovariance(const Matrix& A, double cost, int dof, RefinedRotation* out) {
+  const double sigma2 = cost / std::max(1, dof);
+  out->residual_sigma = std::sqrt(sigma2);
+  const Eigen::FullPivLU<Matrix> lu(A);
+  if (!lu.isInvertible()) return false;
+  out->covariance = sigma2 * lu.inverse().template topLeftCorner<3, 3>();
+  return true;
+}
+
 // The rotation and the covariance of a pure-rotation fit at (R, e): the covariance of (d, de) from
 // the unweighted inliers at the full gate, the rotation's block with the skew's marginalised out
 // (a Schur complement) when `skewed`.
@@ -277,11 +290,7 @@ void setPureRotationFit(FrameMatches& m, const Eigen::Matrix3d& R, const Eigen::
   out->rotation = R;
   out->row_skew = e;
   out->pure_rotation = true;
-  const double sigma2 = eq.sum_sq / std::max(1, 2 * eq.used - (skewed ? 6 : 3));
-  out->residual_sigma = std::sqrt(sigma2);
-  const Eigen::FullPivLU<Eigen::Matrix3d> lu(information);
-  out->covariance = lu.isInvertible() ? Eigen::Matrix3d(sigma2 * lu.inverse())
-                                      : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
+  if (!setFitCovariance(information, eq.sum_sq, 2 * eq.used - (skewed ? 6 : 3), out)) out->covariance.setIdentity();
   if (!skewed) {
     out->inliers = eq.used;
     const size_t outside = m.size() - static_cast<size_t>(eq.used);
@@ -362,18 +371,23 @@ void padGathered(double* const out[6], size_t count, bool interleaved) {
   }
 }
 
+// The six arrays `to` grown to hold `count` gathered matches in whole chunks, their data in *out.
+void gatherTargets(size_t count, std::vector<double>* const to[6], double* out[6]) {
+  const size_t capacity = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  for (int a = 0; a < 6; ++a) {
+    if (to[a]->size() < capacity) to[a]->resize(capacity);
+    out[a] = to[a]->data();
+  }
+}
+
 // Gathers every stride-th match whose keep[i] is not zero (every match when keep is nullptr) into
 // the six arrays `to` (b_prev, then b_cur), padded with zero bearings to whole chunks, where the
 // summing pass of this CPU wants them (passes::PassTable). Returns the number gathered.
 size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, std::vector<double>* const to[6]) {
   const size_t n = m.size();
-  const size_t capacity = (n + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
   const bool interleaved = passes::passes().interleaved;
   double* out[6];
-  for (int a = 0; a < 6; ++a) {
-    to[a]->resize(capacity);
-    out[a] = to[a]->data();
-  }
+  gatherTargets(n, to, out);
   // Without branches (whether a match is kept is close to a coin toss in the wide first rounds):
   // each match is written at the next place, which only a kept one then takes; the place a last
   // dropped match took is padding, zeroed below.
@@ -389,13 +403,9 @@ size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, s
 
 // Gathers the `count` matches listed in `indices`, in that order, as gatherMatches does.
 size_t gatherListed(const FrameMatches& m, const uint32_t* indices, size_t count, std::vector<double>* const to[6]) {
-  const size_t capacity = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
   const bool interleaved = passes::passes().interleaved;
   double* out[6];
-  for (int a = 0; a < 6; ++a) {
-    if (to[a]->size() < capacity) to[a]->resize(capacity);
-    out[a] = to[a]->data();
-  }
+  gatherTargets(count, to, out);
   for (size_t k = 0; k < count; ++k) {
     const size_t at = passes::gatheredPosition(k, interleaved), i = indices[k];
     putGathered(m, i, at, out);
@@ -464,7 +474,7 @@ double tukeyCost(const Gathered& g, const Eigen::Matrix3d& R, const Eigen::Vecto
 }
 
 RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3d t, double threshold,
-                              int iterations, bool warm) {
+                              int iterations) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
   RefinedRotation out;
@@ -479,8 +489,7 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   // few that slip through a fixed gate into a visible rotation bias.
   const double schedule[] = {6.0 * threshold, 2.0 * threshold, 0.0};
   const int rounds = static_cast<int>(sizeof(schedule) / sizeof(schedule[0]));
-  // A warm start (already refined once) is inside the basin: only the adaptive rounds remain.
-  for (int round = warm ? rounds - 1 : 0; round < rounds; ++round) {
+  for (int round = 0; round < rounds; ++round) {
     rotateAll(m, R);
     double gate_width = schedule[round];
     if (gate_width == 0.0) gate_width = adaptiveGate(m, &t, threshold);
@@ -537,15 +546,8 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   out.rotation = R;
   out.translation = t;
   out.inliers = inliers;
-  const double sigma2 = final_fit.cost / std::max(1, inliers - 5);
-  out.residual_sigma = std::sqrt(sigma2);
   out.truncated_cost = final_fit.cost + static_cast<double>(m.size() - static_cast<size_t>(inliers)) * threshold * threshold;
-  Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(final_fit.A);
-  if (lu.isInvertible()) {
-    out.covariance = sigma2 * lu.inverse().topLeftCorner<3, 3>();
-  } else {
-    out.covariance = Eigen::Matrix3d::Identity();
-  }
+  setFitCovariance(final_fit.A, final_fit.cost, inliers - 5, &out);
   return out;
 }
 
@@ -732,7 +734,7 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b) {
 }
 
 RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& start, double threshold,
-                               int iterations, bool warm) {
+                               int iterations) {
   // Model selection: translation is only worth estimating when it explains clearly more matches
   // than a pure rotation does; otherwise its two extra degrees of freedom just absorb rotation
   // error (the rotation/translation ambiguity of narrow fields of view).
@@ -740,12 +742,12 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
   const int extra = start.epipolar_inliers - start.rotation_inliers;
   const bool pure = start.translation.isZero() || extra < kTranslationGain * start.epipolar_inliers;
   if (pure) return refinePureRotation(matches, start.rotation, threshold, iterations);
-  return refineGeneral(matches, start.rotation, start.translation, threshold, iterations, warm);
+  return refineGeneral(matches, start.rotation, start.translation, threshold, iterations);
 }
 
 RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotation,
                              const Eigen::Vector3d& translation, double threshold, int iterations) {
-  return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations, false);
+  return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations);
 }
 
 double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
@@ -924,6 +926,29 @@ bool fitPureRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Eigen
   return true;
 }
 
+// The inliers of `fit` at its full gate, in index order, into scratch.order (its residuals those
+// of squaredResidualsOf); returns their count, and with `near` how many usable matches lie between
+// one and kNearMissGates gates.
+size_t selectInliers(FrameMatches& m, const RefinedRotation& fit, double threshold, size_t* near = nullptr) {
+  FrameMatches::Scratch& s = m.scratch;
+  const size_t n = m.size();
+  squaredResidualsOf(m, fit);
+  const bool pure = fit.pure_rotation || fit.translation.isZero();
+  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
+  s.order.resize(n);
+  size_t count = 0, near_count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    s.order[count] = static_cast<uint32_t>(i);
+    const bool counted = usable(s, i);
+    count += counted & (s.residuals[i] < inside2);
+    near_count += counted & (s.residuals[i] >= inside2) & (s.residuals[i] < near2);
+  }
+  s.order.resize(count);
+  if (near != nullptr) *near = near_count;
+  return count;
+}
+
 // The group jackknife of a fit over `groups` spatial groups (group[i], -1: none) in the row skew's
 // model (pure: rotation, skew; general: rotation, translation, skew), from each group's unweighted
 // inliers at the full gate: the Gauss-Newton step of all the groups from the fit, and the
@@ -971,12 +996,7 @@ SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, d
 // few inliers for them.
 bool groupInliers(FrameMatches& m, const RefinedRotation& fit, double threshold) {
   FrameMatches::Scratch& s = m.scratch;
-  squaredResidualsOf(m, fit);
-  const double gate = fit.pure_rotation ? kRotationGateScale * threshold : threshold;
-  s.order.clear();
-  for (size_t i = 0; i < m.size(); ++i)
-    if (usable(s, i) && s.residuals[i] < gate * gate) s.order.push_back(static_cast<uint32_t>(i));
-  if (jackknifeGroupsPerAxis(s.order.size()) < kMaxGroupsPerAxis) return false;
+  if (jackknifeGroupsPerAxis(selectInliers(m, fit, threshold)) < kMaxGroupsPerAxis) return false;
   spatialGroups(m, kMaxGroupsPerAxis, &s.order, &s.group);
   return true;
 }
@@ -986,13 +1006,7 @@ bool groupInliers(FrameMatches& m, const RefinedRotation& fit, double threshold)
 bool setGeneralSkewFit(FrameMatches& m, double threshold, RefinedRotation* fit) {
   const SkewedEpipolarEquations eq =
       skewedEpipolarEquations(m, fit->rotation, fit->translation, fit->row_skew, threshold, Weighting::kInliers);
-  const SkewMatrix A = eq.system(fit->rotation).first;
-  const Eigen::FullPivLU<SkewMatrix> lu(A);
-  if (!lu.isInvertible()) return false;
-  const double sigma2 = eq.cost / std::max(1, eq.used - 8);
-  fit->residual_sigma = std::sqrt(sigma2);
-  fit->covariance = sigma2 * lu.inverse().topLeftCorner<3, 3>();
-  return true;
+  return setFitCovariance(eq.system(fit->rotation).first, eq.cost, eq.used - 8, fit);
 }
 
 }  // namespace
@@ -1060,25 +1074,15 @@ double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double th
 
 JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {
   JackknifeSpread out;
-  const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
   const Eigen::Matrix3d& R = refined.rotation;
   const bool pure = refined.pure_rotation || refined.translation.isZero();
-  squaredResidualsOf(m, refined);
   // A fitted row skew (never exactly zero) takes part as fitRowSkew fitted it.
   const bool skewed = !refined.row_skew.isZero();
   const double gate = pure ? kRotationGateScale * threshold : threshold;
-  const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
+  size_t near = 0;
+  const size_t count = selectInliers(m, refined, threshold, &near);
   std::vector<uint32_t>& order = s.order;
-  order.resize(n);
-  size_t count = 0, near = 0;
-  for (size_t i = 0; i < n; ++i) {
-    order[count] = static_cast<uint32_t>(i);
-    const bool counted = usable(s, i);
-    count += counted & (s.residuals[i] < inside2);
-    near += counted & (s.residuals[i] >= inside2) & (s.residuals[i] < near2);
-  }
-  order.resize(count);
   out.near_miss_share = static_cast<double>(near) / static_cast<double>(std::max<size_t>(1, count));
   const int k = jackknifeGroupsPerAxis(count);
   if (k < 2) return out;
@@ -1113,7 +1117,7 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
     s.members.resize(count);
     std::array<size_t, kMaxGroups> cursor;
     std::copy(start.begin(), start.begin() + groups, cursor.begin());
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = 0; i < m.size(); ++i) {
       if (s.group[i] >= 0) s.members[cursor[s.group[i]]++] = static_cast<uint32_t>(i);
     }
     std::vector<double>* const to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
@@ -1174,14 +1178,8 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
   const bool pure = refined.pure_rotation || refined.translation.isZero();
   for (int g = 0; g < groups; ++g) {
     rest->assignWithout(m, group, g);
-    RefinedRotation again;
-    if (pure) {
-      VerifiedRotation start;
-      start.rotation = refined.rotation;
-      again = refineRotation(*rest, start, threshold, iterations, true);
-    } else {
-      again = refineMotion(*rest, refined.rotation, refined.translation, threshold, iterations);
-    }
+    RefinedRotation again = pure ? refinePureRotation(*rest, refined.rotation, threshold, iterations)
+                                 : refineMotion(*rest, refined.rotation, refined.translation, threshold, iterations);
     if (!refined.row_skew.isZero()) fitRowSkew(*rest, &again, threshold);
     moved[g] = so3Log(refined.rotation.transpose() * again.rotation);
     if (!moved[g].allFinite()) return out;

@@ -169,9 +169,8 @@ bool fitRowSkew(FrameMatches& matches, RefinedRotation* refined, double threshol
 /// t jointly (Levenberg-Marquardt, Tukey weights) -- Kneip & Lynen's eigenvalue cost
 /// lambda_min(sum n n^T), which is this cost minimised over t -- with each residual normalised to
 /// an angle (Sampson). Covariance = sigma^2 (J^T W J)^-1 for the rotation, t marginalised.
-/// `warm`: the start is already a refined rotation, so the wide first gates are skipped.
 RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& start, double threshold,
-                               int iterations, bool warm = false);
+                               int iterations);
 
 /// Refines `rotation` and the unit `translation` jointly as a general motion (refineRotation's
 /// epipolar refinement, without its model selection): for a start that comes from elsewhere than
@@ -222,7 +221,7 @@ JackknifeSpread jackknifeSpread(FrameMatches& matches, const RefinedRotation& re
 /// matches (inliers or not) split into k x k groups of equal count by the previous bearing as in
 /// jackknifeSpread (at least kMinJackknifeGroupSize matches a group, k = 4 at most); each group is
 /// left out in turn and the rest refined again from `refined` (refineMotion for a general motion,
-/// a warm pure-rotation refinement otherwise, `iterations` each), gate and inliers chosen anew.
+/// refineRotation's pure-rotation refinement otherwise, `iterations` each), gate and inliers chosen anew.
 /// Unlike jackknifeSpread, whose steps keep the inliers fixed, it sees how much the choice of
 /// inliers moves the solution. `rest` holds each refit's matches (its capacity is reused).
 JackknifeSpread refitJackknifeSpread(FrameMatches& matches, FrameMatches* rest, const RefinedRotation& refined,
