@@ -1092,6 +1092,13 @@ TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
   // A stream that starts through a rolling shutter is judged from its kRowSkewMinFrames-th frame
   // on, by the median of the frames it has.
   auto fresh = vg::createRotationEstimator(cpuSettings("vote"));
+  // One frame estimated again and again (the pipeline's second try) is judged once.
+  for (int again = 0; again < static_cast<int>(vg::kRowSkewMinFrames); ++again) {
+    const Scene s = rowSkewedScene(R, skew, 500, 0.2e-3, 299);
+    const vg::RotationResult r = again == 0 ? fresh->estimate(s.previous, s.current)
+                                            : fresh->estimateSameFrame(s.previous, s.current);
+    EXPECT_TRUE(r.diagnostics.row_skew.isZero()) << "estimate " << again;
+  }
   first_skewed = -1;
   for (int k = 0; k < static_cast<int>(vg::kRowSkewWindowFrames); ++k) {
     a = run(*fresh, skew, 300 + k);
@@ -1100,7 +1107,7 @@ TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
     const Vector3d error = vg::so3Log(R.transpose() * a.rotation);
     EXPECT_LT(error.dot(a.covariance.inverse() * error), 11.34) << "frame " << k;  // chi^2_3 at 99 %
   }
-  EXPECT_EQ(first_skewed, static_cast<int>(vg::kRowSkewMinFrames) - 1);
+  EXPECT_EQ(first_skewed, static_cast<int>(vg::kRowSkewMinFrames) - 2);  // after the frame judged once above
   EXPECT_LT((a.diagnostics.row_skew - skew).norm(), 0.03 * kDeg);
   // Once the camera is judged, a frame at a steady rate, whose own matches call for no skew, is
   // fitted with one too: about zero, and the rotation as accurate.

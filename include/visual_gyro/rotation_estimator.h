@@ -347,6 +347,7 @@ class RotationEstimator {
   std::unique_ptr<VoteWorkspace> workspace_;  // the vote method's per-frame arrays, reused likewise
   uint64_t frame_count_ = 0;
   std::vector<double> skew_significance_;  // the last frames' row-skew significance, oldest first
+  uint64_t skew_significance_frame_ = 0;   // frame_count_ when its last entry was added
 };
 
 /// Receives the factory's one warning (e.g. "CUDA unavailable: ...; using the CPU").

@@ -486,7 +486,10 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
 // after a full window, whose first frames a rolling shutter would otherwise leave unmodelled.
 bool RotationEstimator::rollingShutterSeen(double significance) {
   if (!std::isfinite(significance)) return false;
-  skew_significance_.push_back(significance);
+  // A frame estimated again (estimateSameFrame) replaces its own entry: the window counts frames.
+  if (!skew_significance_.empty() && skew_significance_frame_ == frame_count_) skew_significance_.back() = significance;
+  else skew_significance_.push_back(significance);
+  skew_significance_frame_ = frame_count_;
   if (skew_significance_.size() > kRowSkewWindowFrames) skew_significance_.erase(skew_significance_.begin());
   const size_t judged = skew_significance_.size();
   if (judged < kRowSkewMinFrames) return false;
