@@ -1120,6 +1120,9 @@ TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
   EXPECT_FALSE(steady_result.diagnostics.row_skew.isZero());
   EXPECT_LT(steady_result.diagnostics.row_skew.norm(), 0.03 * kDeg);
   EXPECT_LT(vg::rotationAngleBetween(R, steady_result.rotation), 0.01 * kDeg);
+  // A new camera is judged anew.
+  fresh->forgetCamera();
+  EXPECT_TRUE(run(*fresh, skew, 401).diagnostics.row_skew.isZero());
 }
 
 TEST(InlierHull, AreaOfTheInliersOnTheImagePlane) {

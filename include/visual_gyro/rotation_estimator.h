@@ -313,6 +313,9 @@ class RotationEstimator {
   /// default: unknown, no such check. A value that is not finite and positive counts as 0.
   void setMatchFootprint(double angle) { match_footprint_ = std::isfinite(angle) && angle > 0.0 ? angle : 0.0; }
   double matchFootprint() const { return match_footprint_; }
+  /// Forgets what the stream has shown of its camera (whether it has a rolling shutter), for a new
+  /// camera model.
+  void forgetCamera() { skew_significance_.clear(); }
   /// Switches parts of the vote method off (bit k: VotePart k off); 0, the default, runs them all.
   /// Only for measuring what each part earns.
   void setDisabledParts(uint32_t mask) { disabled_parts_ = mask; }

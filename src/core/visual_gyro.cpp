@@ -157,6 +157,7 @@ void VisualGyro::setCamera(const CameraModel& camera) {
   checkCamera(camera);
   camera_ = camera;
   estimator_->setMatchFootprint(matchFootprint(camera_));
+  estimator_->forgetCamera();
   calibration_fit_.reset();
   reset();
 }
