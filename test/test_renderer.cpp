@@ -208,6 +208,44 @@ TEST(Renderer, PresetMotionMatchesItsDescription) {
   }
 }
 
+// The room presets' hand translation scales the still hand's jitter and nothing else: the same
+// rotation, positions 20 times as far at 6 cm, other presets untouched; amounts beyond [0, 1] m are
+// refused.
+TEST(Renderer, HandTranslationScalesTheRoomPresetsTranslationOnly) {
+  RenderSettings still, moving;
+  ASSERT_TRUE(parsePreset("dim", &still.preset));
+  still.rate_hz = 30.0;
+  still.frames = 31;
+  moving = still;
+  moving.hand_translation_m = 0.06;
+  double largest_step = 0.0;
+  Eigen::Vector3d previous = Eigen::Vector3d::Zero();
+  for (int k = 0; k < still.frames; ++k) {
+    Eigen::Matrix3d R_still, R_moving;
+    Eigen::Vector3d p_still, p_moving;
+    presetPose(still, k / still.rate_hz, &R_still, &p_still);
+    presetPose(moving, k / moving.rate_hz, &R_moving, &p_moving);
+    EXPECT_EQ(R_moving, R_still) << "frame " << k;
+    EXPECT_LT((p_moving - 20.0 * p_still).norm(), 1e-12) << "frame " << k;
+    if (k > 0) largest_step = std::max(largest_step, (p_moving - previous).norm());
+    previous = p_moving;
+  }
+  std::printf("hand moving by 6 cm: up to %.1f mm a frame at 30 Hz\n", 1e3 * largest_step);
+  EXPECT_GT(largest_step, 0.005);
+  EXPECT_LT(largest_step, 0.03);
+  RenderSettings drive = still, drive_moving = moving;
+  drive.preset = drive_moving.preset = RenderPreset::kDrive;
+  Eigen::Matrix3d R_a, R_b;
+  Eigen::Vector3d p_a, p_b;
+  presetPose(drive, 1.0, &R_a, &p_a);
+  presetPose(drive_moving, 1.0, &R_b, &p_b);
+  EXPECT_EQ(p_a, p_b);
+  for (const double bad : {-1e-3, 1.5, std::nan("")}) {
+    moving.hand_translation_m = bad;
+    EXPECT_THROW(presetPose(moving, 0.0, &R_a, &p_a), std::invalid_argument) << bad;
+  }
+}
+
 /// Mean absolute difference of one row of two images [grey levels].
 double rowDifference(const cv::Mat& a, const cv::Mat& b, int row) {
   return cv::norm(a.row(row), b.row(row), cv::NORM_L1) / a.cols;

@@ -31,6 +31,9 @@ bool parsePreset(const std::string& name, RenderPreset* preset);
 double presetRateHz(RenderPreset preset);
 
 /// What to render.
+/// The room presets' hand translation by default [m]: a hand holding the camera still.
+constexpr double kStillHandTranslationM = 0.003;
+
 struct RenderSettings {
   RenderPreset preset = RenderPreset::kDrive;
   int frames = 60;
@@ -51,6 +54,10 @@ struct RenderSettings {
   /// Row r (0 = top) is seen from the pose at stamp + (r / (height - 1) - 0.5) * rolling_shutter_s:
   /// a frame's stamp, and its pose in RenderedSequence, are its middle row's. 0 = global shutter.
   double rolling_shutter_s = 0.0;
+  /// Room presets (handheld, dim): amplitude [m] of the hand's translation along x and z (y: two
+  /// thirds of it), each a sine of about 1.1-1.7 Hz: a few millimetres, a hand holding the camera
+  /// still; a few centimetres, a hand moving it. Other presets ignore it.
+  double hand_translation_m = kStillHandTranslationM;
 
   /// Sets the image size [px] and a pinhole camera with fx = fy = `focal` [px] whose principal
   /// point is the image centre ((width - 1) / 2, (height - 1) / 2).

@@ -297,7 +297,8 @@ double wave(double amplitude, double frequency_hz, double phase, double t) {
 
 class Trajectory {
  public:
-  Trajectory(RenderPreset preset, double duration) : preset_(preset) {
+  Trajectory(RenderPreset preset, double duration, double hand_translation_m)
+      : preset_(preset), hand_(hand_translation_m) {
     if (isRoom() || preset_ == RenderPreset::kDroneNear) return;
     // Drive: integrate the heading into positions once (midpoint rule, 2 ms steps), covering a
     // stretch before the first and after the last frame so the scene extends past them.
@@ -336,10 +337,11 @@ class Trajectory {
   void pose(double t, Eigen::Matrix3d* orientation, Eigen::Vector3d* position) const {
     if (isRoom()) {
       // Smooth rotation about all three axes, peak rates about 30, 23 and 19 deg/s (up to ~40 deg/s
-      // together), and millimetre translation jitter (a hand is never still).
+      // together), and the hand's translation (by default millimetre jitter: a hand is never still).
       *orientation = rotationFromYawPitchRoll(wave(deg(16.0), 0.30, 0.4, t), wave(deg(8.0), 0.45, 1.3, t),
                                   wave(deg(5.0), 0.60, 2.1, t));
-      *position = Eigen::Vector3d(wave(0.003, 1.3, 0.2, t), wave(0.002, 1.7, 0.9, t), wave(0.003, 1.1, 1.7, t));
+      const double hand = hand_ / kStillHandTranslationM;  // the still hand's jitter, scaled
+      *position = hand * Eigen::Vector3d(wave(0.003, 1.3, 0.2, t), wave(0.002, 1.7, 0.9, t), wave(0.003, 1.1, 1.7, t));
       return;
     }
     if (preset_ == RenderPreset::kDroneNear) {
@@ -371,6 +373,7 @@ class Trajectory {
 
   static constexpr double kStep = 0.002;  // [s]
   RenderPreset preset_;
+  double hand_ = 0.0;  // room presets: the hand's translation amplitude [m]
   double t_min_ = 0.0;
   std::vector<Eigen::Vector3d> table_;
 };
@@ -504,7 +507,7 @@ void addBackdrops(const Trajectory& trajectory, const StreetLayout& layout, Rng*
 
 void buildStreetScene(const RenderSettings& settings, Scene* scene) {
   const double duration = (settings.frames - 1) / settings.rate_hz;
-  const Trajectory trajectory(settings.preset, duration);
+  const Trajectory trajectory(settings.preset, duration, settings.hand_translation_m);
   SceneBuilder builder(scene, settings.seed);
   Rng rng(mixSeed(settings.seed, 0x5354524545ull));
   const StreetLayout layout = streetLayout(trajectory, duration);
@@ -704,6 +707,8 @@ void validate(const RenderSettings& s) {
   if (!(std::isfinite(s.rate_hz) && s.rate_hz > 0)) throw std::invalid_argument("renderer: rate must be positive");
   if (!(std::isfinite(s.rolling_shutter_s) && s.rolling_shutter_s >= 0 && s.rolling_shutter_s <= 1.0 / s.rate_hz))
     throw std::invalid_argument("renderer: rolling shutter read-out time must be in [0, 1 / rate] s");
+  if (!(std::isfinite(s.hand_translation_m) && s.hand_translation_m >= 0 && s.hand_translation_m <= 1.0))
+    throw std::invalid_argument("renderer: hand translation must be in [0, 1] m");
   checkDegradation(degradationOf(s, Eigen::Vector2d::UnitX()), "renderer");
 }
 
@@ -1008,7 +1013,7 @@ RenderedSequence renderSequence(const RenderSettings& settings) {
   validate(settings);
   const auto scene = sceneFor(settings);
   const double duration = (settings.frames - 1) / settings.rate_hz;
-  const Trajectory trajectory(settings.preset, duration);
+  const Trajectory trajectory(settings.preset, duration, settings.hand_translation_m);
   RenderedSequence out;
   out.K << settings.fx, 0, settings.cx, 0, settings.fy, settings.cy, 0, 0, 1;
   for (int k = 0; k < settings.frames; ++k) {
@@ -1028,7 +1033,7 @@ RenderedSequence renderSequence(const RenderSettings& settings) {
 void presetPose(const RenderSettings& settings, double t, Eigen::Matrix3d* orientation, Eigen::Vector3d* position) {
   validate(settings);
   if (!std::isfinite(t)) throw std::invalid_argument("presetPose: non-finite time");
-  const Trajectory trajectory(settings.preset, (settings.frames - 1) / settings.rate_hz);
+  const Trajectory trajectory(settings.preset, (settings.frames - 1) / settings.rate_hz, settings.hand_translation_m);
   trajectory.pose(t, orientation, position);
 }
 

@@ -30,6 +30,8 @@ const char* const kUsage =
     "  --rolling-shutter-ms T  rows exposed one after another over T ms, row r at\n"
     "                  stamp + (r / (H - 1) - 0.5) T: the stamp and pose of a frame are its middle\n"
     "                  row's (default 0: global shutter; handheld_rs: 28)\n"
+    "  --hand-translation-cm A  handheld, dim: the hand moves the camera by +-A cm along x and z,\n"
+    "                  2/3 of it along y (default 0.3: held still)\n"
     "Presets: drive = car at 10 m/s with a right and a left turn (up to 30 deg/s); handheld =\n"
     "rotation about all axes (up to ~40 deg/s) in a room, mm jitter; forward = straight drive;\n"
     "dim = the handheld motion in a dim room of plain walls, doors and boxes (30 grey levels);\n"
@@ -96,6 +98,8 @@ int run(int argc, char** argv) {
     } else if (args.is("--rolling-shutter-ms")) {
       read_out_ms = args.doubleValue(0.0, 1e9);
       shutter_given = true;
+    } else if (args.is("--hand-translation-cm")) {
+      settings.hand_translation_m = 0.01 * args.doubleValue(0.0, 100.0);
     } else if (args.is("--seed")) {
       settings.seed = static_cast<uint64_t>(args.intValue(0, 9223372036854775807LL));
     } else {
