@@ -1059,6 +1059,89 @@ TEST(CandidateRefinement, AnUnconfirmedRowSkewWidensTheCovariance) {
   EXPECT_NEAR(u.dot(after * u) - u.dot(before * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
 }
 
+// A pure rotation absorbs a small translation's mean parallax into its rotation; the general fit
+// from it shows by how much.
+TEST(CandidateRefinement, TranslationOffsetOfAPureWinnerIsTheTranslationsBias) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.5 * kDeg, 0.2 * kDeg);
+  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
+  vg::VerifiedRotation pure_start;
+  pure_start.rotation = R;
+  for (const double lateral : {0.0, 0.01}) {
+    const Scene s = makeScene(R, Vector3d(lateral, 0.3 * lateral, 0.0), 400, 0.2e-3, 0.1, 1.5, 6, 21);
+    vg::FrameMatches matches;
+    matches.assign(s.previous, s.current);
+    const vg::RefinedRotation pure = vg::refineRotation(matches, pure_start, threshold, 10);
+    ASSERT_TRUE(pure.pure_rotation);
+    const Vector3d bias = vg::so3Log(pure.rotation.transpose() * R);
+    const Vector3d offset = vg::translationOffset(matches, pure, threshold, 10);
+    if (lateral == 0.0) {
+      EXPECT_LT(offset.norm(), 0.02 * kDeg) << "no translation: the general fit stays at the pure one";
+    } else {
+      ASSERT_GT(bias.norm(), 0.1 * kDeg);
+      EXPECT_LT((offset - bias).norm(), 0.25 * bias.norm());
+    }
+  }
+  // A general-motion winner has no such offset.
+  const Scene s = makeScene(R, Vector3d(0.2, 0.0, 1.0), 300, 0.2e-3, 0.0, 2, 10, 22);
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  EXPECT_TRUE(vg::translationOffset(matches, refinedAt(R, Vector3d(0.2, 0, 1).normalized(), 300, 1.0), threshold, 10)
+                  .isZero());
+}
+
+// The estimator's part: a pure rotation chosen where a small lateral translation moves the
+// camera (its parallax within the inlier gate) is biased by it, and its covariance says so only
+// with the part; off in the ablation.
+TEST(VoteMethod, APureRotationsCovarianceCoversAnUnmodelledTranslation) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, -0.4 * kDeg, 0.2 * kDeg);
+  auto with = vg::createRotationEstimator(cpuSettings("vote"));
+  auto without = vg::createRotationEstimator(cpuSettings("vote"));
+  without->setDisabledParts(1u << static_cast<int>(vg::VotePart::kTranslationSpread));
+  with->setRefinedPositions(true);
+  without->setRefinedPositions(true);
+  double nees_with = 0.0, nees_without = 0.0;
+  const int frames = 10;
+  for (int k = 0; k < frames; ++k) {
+    const Vector3d t = vg::so3Exp(Vector3d::UnitZ() * (0.6 * k)) * Vector3d(0.008, 0.0, 0.0);
+    const Scene s = makeScene(R, t, 400, 0.05e-3, 0.1, 4, 6, 300 + k);
+    const vg::RotationResult a = with->estimate(s.previous, s.current);
+    const vg::RotationResult b = without->estimate(s.previous, s.current);
+    ASSERT_TRUE(a.valid() && b.valid()) << a.reason << b.reason;
+    EXPECT_TRUE(a.pure_rotation) << "frame " << k;
+    EXPECT_EQ(a.rotation, b.rotation) << "the part changes the covariance only";
+    const Vector3d error = vg::so3Log(a.rotation.transpose() * R);
+    EXPECT_GT(error.norm(), 0.03 * kDeg) << "frame " << k << ": the translation's bias";
+    nees_with += error.dot(a.covariance.inverse() * error) / frames;
+    nees_without += error.dot(b.covariance.inverse() * error) / frames;
+  }
+  EXPECT_LT(nees_with, 6.0);
+  EXPECT_GT(nees_without, 11.34) << "without the part, beyond chi^2_3's 99 % on the mean";
+  EXPECT_STREQ(vg::votePartName(vg::VotePart::kTranslationSpread), "translation_spread");
+}
+
+TEST(VoteCovariance, TranslationSpreadCoversTheOffsetAcrossTheView) {
+  const Vector3d offset(0.1 * kDeg, -0.2 * kDeg, 0.05 * kDeg);
+  const Vector3d view = Vector3d(0.1, -0.2, 1.0).normalized();
+  const Matrix3d spread = vg::translationSpread(offset, view);
+  EXPECT_NEAR(view.dot(spread * view), 0.0, 1e-15);
+  const Vector3d across = view.cross(Vector3d::UnitX()).normalized();
+  for (const Vector3d& u : {across, view.cross(across)}) EXPECT_NEAR(u.dot(spread * u), 0.5 * offset.squaredNorm(), 1e-15);
+  EXPECT_TRUE(vg::translationSpread(Vector3d::Zero(), view).isZero());
+  // voteCovariance adds it as it is.
+  const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 300, 0.5e-3, 0.0, 20, 60, 10);
+  vg::FrameMatches matches, refit;
+  matches.assign(s.previous, s.current);
+  const vg::RefinedRotation winner = refinedAt(Matrix3d::Identity(), Vector3d::Zero(), 300, 1.0);
+  vg::CovarianceInput in;
+  in.threshold = 0.1 * kDeg;
+  in.iterations = 10;
+  vg::VoteDiagnostics d;
+  const Matrix3d alone = vg::voteCovariance(matches, &refit, winner, {}, in, &d);
+  in.translation_offset = offset;
+  in.view = view;
+  EXPECT_TRUE((vg::voteCovariance(matches, &refit, winner, {}, in, &d) - alone).isApprox(spread, 1e-9));
+}
+
 // The estimator's part: on by default, judged over a window of frames as a property of the camera,
 // reported in the diagnostics, off in the ablation.
 TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {

@@ -272,6 +272,7 @@ enum class VotePart : uint8_t {
   kRefitJackknife,    ///< the covariance's refits without each group (many near misses)
   kContenderSpread,   ///< the covariance's spread of the competing refined candidates
   kRowSkew,           ///< a pure rotation's change down the image (a rolling shutter's)
+  kTranslationSpread, ///< a pure rotation's covariance covering what an unmodelled translation moves
   kCount
 };
 /// The part's name in `vote-without-<name>` ("wide_vote", "prior_candidate", ...).

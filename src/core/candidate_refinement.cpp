@@ -318,4 +318,21 @@ bool addRowSkewContender(FrameMatches& matches, double threshold, RefinementChoi
   return true;
 }
 
+// A pure rotation absorbs the mean parallax of a translation into its rotation, and its residuals
+// keep only the parallax's spread over depths, so neither its fit nor its jackknives show the
+// bias. A general fit from it does, when the matches determine a translation; a lateral one moves
+// the image as a rotation across the view does, which is the bias to bound, and the forward
+// direction adds nothing there.
+Eigen::Vector3d translationOffset(FrameMatches& matches, const RefinedRotation& winner, double threshold,
+                                  int iterations) {
+  if (!winner.pure_rotation) return Eigen::Vector3d::Zero();
+  RefinedRotation best;
+  for (const Eigen::Vector3d lateral : {Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()}) {
+    const RefinedRotation general = refineMotion(matches, winner.rotation, lateral, threshold, iterations);
+    if (best.inliers == 0 || general.truncated_cost < best.truncated_cost) best = general;
+  }
+  if (best.inliers == 0) return Eigen::Vector3d::Zero();
+  return so3Log(winner.rotation.transpose() * best.rotation);
+}
+
 }  // namespace visual_gyro

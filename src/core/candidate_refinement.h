@@ -74,4 +74,11 @@ bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice*
 /// contenders' spread covers the rotation the skew would move. True when it joined.
 bool addRowSkewContender(FrameMatches& matches, double threshold, RefinementChoice* choice);
 
+/// Where a pure rotation wins, how far an unmodelled translation could move it: the general motion
+/// refined from the winner's rotation with each lateral translation (the camera's x and y axes),
+/// the lower truncated cost kept. Returns the rotation vector [rad] from the winner to that fit
+/// (right perturbation, winner.rotation * exp(offset)); zero for a general-motion winner.
+Eigen::Vector3d translationOffset(FrameMatches& matches, const RefinedRotation& winner, double threshold,
+                                  int iterations);
+
 }  // namespace visual_gyro

@@ -126,6 +126,7 @@ const char* votePartName(VotePart part) {
     case VotePart::kRefitJackknife: return "refit_jackknife";
     case VotePart::kContenderSpread: return "contender_spread";
     case VotePart::kRowSkew: return "row_skew";
+    case VotePart::kTranslationSpread: return "translation_spread";
     case VotePart::kCount: break;
   }
   return "";
@@ -374,8 +375,15 @@ CandidateVoteInput candidateInput(const RotationEstimator& estimator, VoteWorksp
           estimator.partEnabled(VotePart::kIdentityCandidate)};
 }
 
-void fillVoteDiagnostics(const CandidateVote& vote, const RefinementChoice& choice, const Eigen::Vector3d* prior,
-                         VoteDiagnostics* diagnostics) {
+// The result's counts and diagnostics from the vote and the chosen refinement.
+void fillVoteResult(const CandidateVote& vote, const RefinementChoice& choice, const Eigen::Vector3d* prior,
+                    RotationResult* result) {
+  result->inliers = choice.winner.inliers;
+  result->pure_rotation = choice.winner.pure_rotation;
+  result->hypotheses_drawn = vote.hypotheses_drawn;
+  result->hypotheses_accepted = vote.hypotheses_accepted;
+  result->winning_votes = vote.winning_votes;
+  VoteDiagnostics* diagnostics = &result->diagnostics;
   diagnostics->prior_used = prior != nullptr;
   diagnostics->wide_vote = vote.wide_vote;
   diagnostics->candidates_verified = static_cast<int>(vote.candidates.size());
@@ -432,6 +440,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
 
   RotationResult result;
   VoteDiagnostics& diagnostics = result.diagnostics;
+  const Eigen::Vector3d view = meanBearing(previous);
   RefinementChoice choice =
       refineCandidates(w.matches, vote, threshold, iterations, partEnabled(VotePart::kRefineContenders));
   if (partEnabled(VotePart::kPreviousMotion) && prior_rotation != nullptr && prior.translation.allFinite() &&
@@ -439,9 +448,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     diagnostics.previous_motion_won = refineFromPreviousMotion(
         w.matches, so3Exp(*prior_rotation), prior.translation.normalized(), threshold, iterations, &choice);
   if (partEnabled(VotePart::kValley))
-    diagnostics.valley_searched = searchValley(w.matches, meanBearing(previous), vote.best_verified, threshold,
-                                               iterations, seed, &choice,
-                                               &diagnostics.valley_moved);
+    diagnostics.valley_searched = searchValley(w.matches, view, vote.best_verified, threshold, iterations, seed,
+                                               &choice, &diagnostics.valley_moved);
   if (partEnabled(VotePart::kRestarts))
     diagnostics.restart_won = restartFromTranslations(w.matches, threshold, iterations, &choice);
   if (partEnabled(VotePart::kDescent))
@@ -455,17 +463,16 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   }
 
   const RefinedRotation& winner = choice.winner;
+  const Eigen::Vector3d translation_offset = partEnabled(VotePart::kTranslationSpread)
+                                                 ? translationOffset(w.matches, winner, threshold, iterations)
+                                                 : Eigen::Vector3d::Zero();
   fillAngles(winner.rotation, &result);
   result.translation = winner.pure_rotation ? Eigen::Vector3d::Zero() : winner.translation;
   CovarianceInput covariance{threshold, iterations, refined_positions_, partEnabled(VotePart::kRefitJackknife),
-                             partEnabled(VotePart::kContenderSpread), settings_.min_covariance_rad2};
+                             partEnabled(VotePart::kContenderSpread), translation_offset, view,
+                             settings_.min_covariance_rad2};
   result.covariance = voteCovariance(w.matches, &w.refit_matches, winner, choice.contenders, covariance, &diagnostics);
-  result.inliers = winner.inliers;
-  result.pure_rotation = winner.pure_rotation;
-  result.hypotheses_drawn = vote.hypotheses_drawn;
-  result.hypotheses_accepted = vote.hypotheses_accepted;
-  result.winning_votes = vote.winning_votes;
-  fillVoteDiagnostics(vote, choice, prior_rotation, &diagnostics);
+  fillVoteResult(vote, choice, prior_rotation, &result);
   if (match_footprint_ > 0.0)
     diagnostics.descriptor_areas = inlierHullArea(w.matches, winner, threshold) / (match_footprint_ * match_footprint_);
   result.status = FrameStatus::kValid;

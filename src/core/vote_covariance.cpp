@@ -74,10 +74,15 @@ Eigen::Matrix3d voteCovariance(FrameMatches& matches, FrameMatches* refit_matche
   if (scaled.jack.groups > 0) covariance = coverInEveryDirection(covariance, scaled.jack.covariance);
   if (scaled.refit.groups > 0) covariance = coverInEveryDirection(covariance, scaled.refit.covariance);
   if (input.contender_spread) covariance += contenderSpread(winner, contenders);
+  covariance += translationSpread(input.translation_offset, input.view);
   const double floor = rotationCovarianceFloor(input.refined_positions);
   covariance.diagonal().array() += floor * floor;
   for (int k = 0; k < 3; ++k) covariance(k, k) = std::max(covariance(k, k), input.min_variance);
   return covariance;
+}
+
+Eigen::Matrix3d translationSpread(const Eigen::Vector3d& offset, const Eigen::Vector3d& view) {
+  return 0.5 * offset.squaredNorm() * (Eigen::Matrix3d::Identity() - view * view.transpose());
 }
 
 Eigen::Matrix3d coverInEveryDirection(const Eigen::Matrix3d& covariance, const Eigen::Matrix3d& spread) {

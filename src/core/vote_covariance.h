@@ -1,6 +1,7 @@
 // The vote method's covariance model, in one place: the refinement's sigma^2 (J^T W J)^-1 scaled
 // by how far the matches' errors are from independent, widened to cover the spatial jackknives'
-// spread in every direction, plus the spread of the competing refinements, plus a floor.
+// spread in every direction, plus the spread of the competing refinements, plus what an unmodelled
+// translation moves a pure rotation by, plus a floor.
 // doc/covariance.md explains and measures it. Private to src/core; rotation vector covariances
 // [rad^2] of the right perturbation R exp(d), as RefinedRotation::covariance.
 #pragma once
@@ -21,6 +22,10 @@ struct CovarianceInput {
   bool refined_positions = false;  ///< RotationEstimator::setRefinedPositions
   bool refit_jackknife = true;     ///< VotePart::kRefitJackknife
   bool contender_spread = true;    ///< VotePart::kContenderSpread
+  /// A pure-rotation winner's translationOffset [rad] (zero: none) and the mean previous bearing
+  /// (unit), across which that offset is spread.
+  Eigen::Vector3d translation_offset = Eigen::Vector3d::Zero();
+  Eigen::Vector3d view = Eigen::Vector3d::UnitZ();
   double min_variance = 0.0;       ///< EstimatorSettings::min_covariance_rad2, per diagonal entry
 };
 
@@ -34,11 +39,17 @@ struct CovarianceInput {
 /// widened where either jackknife spreads further along some direction (coverInEveryDirection);
 /// plus the second moment about the winner of the `contenders` (the refinements that competed),
 /// each weighted by how indistinguishable its inlier count is from the winner's; plus
-/// rotationCovarianceFloor squared on the diagonal, each diagonal entry at least min_variance.
+/// translationSpread of the input's translation_offset; plus rotationCovarianceFloor squared on the diagonal, each diagonal entry at least min_variance.
 /// *diagnostics receives near_miss_share, refit_jackknife and effective_matches.
 Eigen::Matrix3d voteCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
                                const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
                                VoteDiagnostics* diagnostics);
+
+/// The second moment of a rotation vector [rad] of the length of `offset` in a direction drawn
+/// uniformly across `view` (unit): |offset|^2 / 2 (I - view view^T) [rad^2]. A pure rotation's
+/// offset to the general fit from it has the bias's size, but not its direction: where the
+/// translation is small the matches hardly tell which lateral direction it takes.
+Eigen::Matrix3d translationSpread(const Eigen::Vector3d& offset, const Eigen::Vector3d& view);
 
 /// Near misses (JackknifeSpread::near_miss_share) per inlier from which the covariance also takes
 /// the refit jackknife's spread.
