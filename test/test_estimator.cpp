@@ -1006,28 +1006,11 @@ TEST(RowSkew, GeneralMotionTakesTheSkewToo) {
   EXPECT_LT(significance, vg::kRowSkewSignificance);
 }
 
-// The winner takes the skew, and its own entry among the contenders moves with it.
-TEST(CandidateRefinement, WinnerTakesTheRowSkewAndItsContenderEntryFollows) {
-  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.5 * kDeg, 0.0);
-  const Scene s = rowSkewedScene(R, Vector3d(0.3, 0.2, -0.1) * kDeg, 300, 0.2e-3, 5);
-  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
-  vg::FrameMatches matches;
-  matches.assign(s.previous, s.current);
-  vg::VerifiedRotation verified;
-  verified.rotation = R;
-  vg::RefinementChoice choice;
-  choice.winner = vg::refineRotation(matches, verified, threshold, 10);
-  const vg::RefinedRotation other = refinedAt(vg::so3Exp(Vector3d(0, 0.01, 0)) * R, Vector3d(1, 0, 0), 50, 1.0);
-  choice.contenders = {choice.winner, other};
-  ASSERT_TRUE(vg::fitWinnerRowSkew(matches, threshold, &choice));
-  EXPECT_FALSE(choice.winner.row_skew.isZero());
-  EXPECT_EQ(choice.contenders[0].rotation, choice.winner.rotation);
-  EXPECT_EQ(choice.contenders[1].rotation, other.rotation);
-}
-
-// A skew the stream has not confirmed: the winner stays rigid, its skewed fit joins the contenders
-// with the same inliers, and the covariance then covers the rotation the skew would move.
-TEST(CandidateRefinement, AnUnconfirmedRowSkewWidensTheCovariance) {
+// Where a frame's matches call for a skew, the skewed fit joins the contenders with the rigid fit's
+// inliers, and the covariance then covers the rotation the skew moves: the winner stays rigid
+// while the stream has not confirmed a rolling shutter, and takes the skew once it has, the rigid
+// fit then a contender.
+TEST(CandidateRefinement, RowSkewAndRigidFitAreEachOthersContenders) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.5 * kDeg, 0.0);
   const Scene s = rowSkewedScene(R, Vector3d(0.3, 0.2, -0.1) * kDeg, 300, 0.2e-3, 5);
   const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
@@ -1035,28 +1018,43 @@ TEST(CandidateRefinement, AnUnconfirmedRowSkewWidensTheCovariance) {
   matches.assign(s.previous, s.current);
   vg::VerifiedRotation verified;
   verified.rotation = R;
-  vg::RefinementChoice choice;
-  choice.winner = vg::refineRotation(matches, verified, threshold, 10);
-  choice.contenders = {choice.winner};
-  const vg::RefinedRotation rigid = choice.winner;
+  const vg::RefinedRotation rigid = vg::refineRotation(matches, verified, threshold, 10);
+  const vg::RefinedRotation other = refinedAt(vg::so3Exp(Vector3d(0, 0.01, 0)) * R, Vector3d(1, 0, 0), 50, 1.0);
   vg::CovarianceInput in;
   in.threshold = threshold;
   in.iterations = 10;
   vg::VoteDiagnostics d;
-  const Matrix3d before = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d);
-  ASSERT_TRUE(vg::addRowSkewContender(matches, threshold, &choice));
-  EXPECT_EQ(choice.winner.rotation, rigid.rotation);
-  EXPECT_TRUE(choice.winner.row_skew.isZero());
-  ASSERT_EQ(choice.contenders.size(), 2u);
-  EXPECT_FALSE(choice.contenders[1].row_skew.isZero());
-  EXPECT_EQ(choice.contenders[1].inliers, rigid.inliers);
-  const Vector3d moved = vg::so3Log(rigid.rotation.transpose() * choice.contenders[1].rotation);
-  ASSERT_GT(moved.norm(), 0.02 * kDeg);
-  const Matrix3d after = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d);
-  // Along the move, the variance grows by half its square (the winner and the skewed fit as a
-  // mixture of two equally likely rotations).
-  const Vector3d u = moved.normalized();
-  EXPECT_NEAR(u.dot(after * u) - u.dot(before * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
+  for (const bool confirmed : {false, true}) {
+    vg::RefinementChoice choice;
+    choice.winner = rigid;
+    choice.contenders = {rigid, other};
+    const Matrix3d before = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d);
+    ASSERT_TRUE(vg::addRowSkew(matches, threshold, confirmed, &choice));
+    ASSERT_EQ(choice.contenders.size(), 3u);
+    EXPECT_EQ(choice.contenders[0].rotation, rigid.rotation) << "the rigid fit stays a contender";
+    EXPECT_EQ(choice.contenders[1].rotation, other.rotation);
+    const vg::RefinedRotation& skewed = choice.contenders[2];
+    EXPECT_FALSE(skewed.row_skew.isZero());
+    EXPECT_EQ(skewed.inliers, rigid.inliers);
+    EXPECT_EQ(choice.winner.rotation, confirmed ? skewed.rotation : rigid.rotation);
+    EXPECT_EQ(choice.winner.row_skew.isZero(), !confirmed);
+    const Vector3d moved = vg::so3Log(rigid.rotation.transpose() * skewed.rotation);
+    ASSERT_GT(moved.norm(), 0.02 * kDeg);
+    // Along the move, the variance about the winner grows by half its square (the two fits as a
+    // mixture of two equally likely rotations); the winner's own covariance is the rigid or the
+    // skewed fit's, so the unconfirmed case compares like with like.
+    if (!confirmed) {
+      const Matrix3d after = vg::voteCovariance(matches, &refit, choice.winner, choice.contenders, in, &d);
+      const Vector3d u = moved.normalized();
+      EXPECT_NEAR(u.dot(after * u) - u.dot(before * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
+    } else {
+      std::vector<vg::RefinedRotation> without_rigid = {other, skewed};
+      const Matrix3d alone = vg::voteCovariance(matches, &refit, choice.winner, without_rigid, in, &d);
+      const Matrix3d after = vg::voteCovariance(matches, &refit, choice.winner, choice.contenders, in, &d);
+      const Vector3d u = moved.normalized();
+      EXPECT_NEAR(u.dot(after * u) - u.dot(alone * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
+    }
+  }
 }
 
 // A pure rotation absorbs a small translation's mean parallax into its rotation; the general fit

@@ -301,20 +301,14 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
   return moved && choice->challenge(refineMotion(matches, rotation, translation, threshold, iterations));
 }
 
-// The contenders' spread skips a contender at the winner's rotation, its own entry: that entry must
-// move with the winner, or the winner's rigid and skewed fits would count as two rotations.
-bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice) {
-  const Eigen::Matrix3d rigid = choice->winner.rotation;
-  if (!fitRowSkew(matches, &choice->winner, threshold)) return false;
-  for (RefinedRotation& c : choice->contenders)
-    if (c.pure_rotation == choice->winner.pure_rotation && c.rotation == rigid) c = choice->winner;
-  return true;
-}
-
-bool addRowSkewContender(FrameMatches& matches, double threshold, RefinementChoice* choice) {
+// The skew models what a rolling shutter does while the rate changes within the pair, not all of
+// it (the rows' translation near structure stays out), and the rigid fit explains the same
+// matches: neither excludes the other, so each is a contender of the other.
+bool addRowSkew(FrameMatches& matches, double threshold, bool confirmed, RefinementChoice* choice) {
   RefinedRotation skewed = choice->winner;
   if (!fitRowSkew(matches, &skewed, threshold)) return false;
   choice->contenders.push_back(skewed);
+  if (confirmed) choice->winner = skewed;
   return true;
 }
 

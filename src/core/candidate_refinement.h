@@ -64,15 +64,12 @@ bool restartFromTranslations(FrameMatches& matches, double threshold, int iterat
 /// winner. True when it won.
 bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
 
-/// Once the refinements are chosen (on their rigid fits): the winner takes the row skew of a
-/// rolling shutter where its matches call for one (fitRowSkew), and its own entry among the
-/// contenders follows it. True when a skew was fitted.
-bool fitWinnerRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice);
-
-/// Where a frame's matches call for a row skew that its stream has not confirmed: the winner stays
-/// rigid and its skewed fit joins the contenders, with the same inliers, so that the covariance's
-/// contenders' spread covers the rotation the skew would move. True when it joined.
-bool addRowSkewContender(FrameMatches& matches, double threshold, RefinementChoice* choice);
+/// Once the refinements are chosen (on their rigid fits), where a frame's matches call for the row
+/// skew of a rolling shutter: the winner's skewed fit (fitRowSkew, with the rigid fit's inliers)
+/// joins the contenders, and takes the winner's place when the stream has confirmed a rolling
+/// shutter (`confirmed`). The rigid fit stays among the contenders either way, so that the
+/// covariance's contenders' spread covers the rotation the skew moves. True when a skew was fitted.
+bool addRowSkew(FrameMatches& matches, double threshold, bool confirmed, RefinementChoice* choice);
 
 /// Where a pure rotation wins, how far an unmodelled translation could move it: the general motion
 /// refined from the winner's rotation with each lateral translation (the camera's x and y axes),

@@ -455,11 +455,12 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   if (partEnabled(VotePart::kDescent))
     diagnostics.descent_won = descendTruncatedCost(w.matches, threshold, iterations, &choice);
   if (partEnabled(VotePart::kRowSkew)) {
-    // Before the stream has shown a rolling shutter (and on a global shutter's odd frame) the
-    // frame's own call for a skew is not followed, but its rotation is as likely as the rigid one.
+    // Once the stream has shown a rolling shutter every frame takes the skew; before (and on a
+    // global shutter's odd frame) the frame's own call for one is not followed, but its rotation is
+    // as likely as the rigid one.
     const double significance = rowSkewSignificance(w.matches, choice.winner, threshold);
-    if (rollingShutterSeen(significance)) fitWinnerRowSkew(w.matches, threshold, &choice);
-    else if (significance > kRowSkewSignificance) addRowSkewContender(w.matches, threshold, &choice);
+    const bool confirmed = rollingShutterSeen(significance);
+    if (confirmed || significance > kRowSkewSignificance) addRowSkew(w.matches, threshold, confirmed, &choice);
   }
 
   const RefinedRotation& winner = choice.winner;
