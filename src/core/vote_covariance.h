@@ -39,7 +39,8 @@ struct CovarianceInput {
 /// widened where either jackknife spreads further along some direction (coverInEveryDirection);
 /// plus the second moment about the winner of the `contenders` (the refinements that competed),
 /// each weighted by how indistinguishable its inlier count is from the winner's; plus
-/// translationSpread of the input's translation_offset; plus rotationCovarianceFloor squared on the diagonal, each diagonal entry at least min_variance.
+/// translationSpread of the input's translation_offset; plus rotationCovarianceFloor squared on the
+/// diagonal, each diagonal entry at least min_variance.
 /// *diagnostics receives near_miss_share, refit_jackknife and effective_matches.
 Eigen::Matrix3d voteCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
                                const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
