@@ -1123,7 +1123,8 @@ TEST(VoteCovariance, TranslationSpreadCoversTheOffsetAcrossTheView) {
   const Matrix3d spread = vg::translationSpread(offset, view);
   EXPECT_NEAR(view.dot(spread * view), 0.0, 1e-15);
   const Vector3d across = view.cross(Vector3d::UnitX()).normalized();
-  for (const Vector3d& u : {across, view.cross(across)}) EXPECT_NEAR(u.dot(spread * u), 0.5 * offset.squaredNorm(), 1e-15);
+  for (const Vector3d& u : {across, view.cross(across)})
+    EXPECT_NEAR(u.dot(spread * u), 0.5 * offset.squaredNorm(), 1e-15);
   EXPECT_TRUE(vg::translationSpread(Vector3d::Zero(), view).isZero());
   // voteCovariance adds it as it is.
   const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 300, 0.5e-3, 0.0, 20, 60, 10);
