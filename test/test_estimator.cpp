@@ -548,6 +548,25 @@ vg::RefinedRotation refinedAt(const Matrix3d& R, const Vector3d& t, int inliers,
   return r;
 }
 
+// The covariance model's input for a pure-rotation winner of 300 noise-only matches of a far
+// scene, with integer positions.
+struct CovarianceFixture {
+  vg::FrameMatches matches, refit;
+  vg::RefinedRotation winner = refinedAt(Matrix3d::Identity(), Vector3d::Zero(), 300, 1.0);
+  vg::CovarianceInput in;
+  vg::VoteDiagnostics diagnostics;
+
+  CovarianceFixture() {
+    const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 300, 0.5e-3, 0.0, 20, 60, 10);
+    matches.assign(s.previous, s.current);
+    in.threshold = 0.1 * kDeg;
+    in.iterations = 10;
+  }
+  Matrix3d covariance(const std::vector<vg::RefinedRotation>& contenders = {}) {
+    return vg::voteCovariance(matches, &refit, winner, contenders, in, &diagnostics);
+  }
+};
+
 }  // namespace
 
 TEST(VoteCandidates, DistinctCellsThenPriorAndIdentityBestFirst) {
@@ -675,29 +694,22 @@ TEST(CandidateRefinement, DescentRunsOnlyWhenTooFewAreExplainedAndEndsLower) {
 }
 
 TEST(VoteCovariance, ContendersWidenItAndTheFloorsHold) {
-  const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 300, 0.5e-3, 0.0, 20, 60, 10);
-  vg::FrameMatches matches, refit;
-  matches.assign(s.previous, s.current);
-  const vg::RefinedRotation winner = refinedAt(Matrix3d::Identity(), Vector3d::Zero(), 300, 1.0);
-  vg::CovarianceInput in;
-  in.threshold = 0.1 * kDeg;
-  in.iterations = 10;
-  vg::VoteDiagnostics d;
-  const Matrix3d alone = vg::voteCovariance(matches, &refit, winner, {}, in, &d);
+  CovarianceFixture f;
+  const Matrix3d alone = f.covariance();
   const double floor = vg::rotationCovarianceFloor(false);
   // Integer positions: sigma^2 (J^T W J)^-1 times inliers / kIntegerPositionsEffectiveMatches, plus the floor.
-  EXPECT_TRUE(alone.isApprox(winner.covariance * (300.0 / vg::kIntegerPositionsEffectiveMatches) +
+  EXPECT_TRUE(alone.isApprox(f.winner.covariance * (300.0 / vg::kIntegerPositionsEffectiveMatches) +
                              Matrix3d::Identity() * floor * floor, 1e-12));
-  EXPECT_NEAR(d.effective_matches, vg::kIntegerPositionsEffectiveMatches, 1e-9);
+  EXPECT_NEAR(f.diagnostics.effective_matches, vg::kIntegerPositionsEffectiveMatches, 1e-9);
   // A contender 1 deg away about x with as many inliers weighs 1: half its second moment is added.
   const Vector3d away = Vector3d::UnitX() * kDeg;
   const std::vector<vg::RefinedRotation> contenders{refinedAt(vg::so3Exp(away), Vector3d::Zero(), 300, 1.0)};
-  const Matrix3d mixed = vg::voteCovariance(matches, &refit, winner, contenders, in, &d);
+  const Matrix3d mixed = f.covariance(contenders);
   EXPECT_TRUE((mixed - alone).isApprox(0.5 * away * away.transpose(), 1e-9));
-  in.contender_spread = false;
-  EXPECT_TRUE(vg::voteCovariance(matches, &refit, winner, contenders, in, &d).isApprox(alone, 1e-12));
-  in.min_variance = 1e-3;
-  EXPECT_DOUBLE_EQ(vg::voteCovariance(matches, &refit, winner, {}, in, &d)(1, 1), 1e-3);
+  f.in.contender_spread = false;
+  EXPECT_TRUE(f.covariance(contenders).isApprox(alone, 1e-12));
+  f.in.min_variance = 1e-3;
+  EXPECT_DOUBLE_EQ(f.covariance()(1, 1), 1e-3);
 }
 
 TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
@@ -1127,18 +1139,11 @@ TEST(VoteCovariance, TranslationSpreadCoversTheOffsetAcrossTheView) {
     EXPECT_NEAR(u.dot(spread * u), 0.5 * offset.squaredNorm(), 1e-15);
   EXPECT_TRUE(vg::translationSpread(Vector3d::Zero(), view).isZero());
   // voteCovariance adds it as it is.
-  const Scene s = makeScene(Matrix3d::Identity(), Vector3d::Zero(), 300, 0.5e-3, 0.0, 20, 60, 10);
-  vg::FrameMatches matches, refit;
-  matches.assign(s.previous, s.current);
-  const vg::RefinedRotation winner = refinedAt(Matrix3d::Identity(), Vector3d::Zero(), 300, 1.0);
-  vg::CovarianceInput in;
-  in.threshold = 0.1 * kDeg;
-  in.iterations = 10;
-  vg::VoteDiagnostics d;
-  const Matrix3d alone = vg::voteCovariance(matches, &refit, winner, {}, in, &d);
-  in.translation_offset = offset;
-  in.view = view;
-  EXPECT_TRUE((vg::voteCovariance(matches, &refit, winner, {}, in, &d) - alone).isApprox(spread, 1e-9));
+  CovarianceFixture f;
+  const Matrix3d alone = f.covariance();
+  f.in.translation_offset = offset;
+  f.in.view = view;
+  EXPECT_TRUE((f.covariance() - alone).isApprox(spread, 1e-9));
 }
 
 // The estimator's part: on by default, judged over a window of frames as a property of the camera,
