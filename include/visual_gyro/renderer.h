@@ -30,10 +30,10 @@ bool parsePreset(const std::string& name, RenderPreset* preset);
 /// The frame rate a preset is meant for [Hz] (10, 30 or 20).
 double presetRateHz(RenderPreset preset);
 
-/// What to render.
 /// The room presets' hand translation by default [m]: a hand holding the camera still.
 constexpr double kStillHandTranslationM = 0.003;
 
+/// What to render.
 struct RenderSettings {
   RenderPreset preset = RenderPreset::kDrive;
   int frames = 60;

@@ -926,6 +926,13 @@ bool fitPureRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Eigen
   return true;
 }
 
+// The full inlier gate of `fit` [rad]: the 2-D pure-rotation residual's is kRotationGateScale times
+// the epipolar one's.
+double fullGate(const RefinedRotation& fit, double threshold) {
+  const bool pure = fit.pure_rotation || fit.translation.isZero();
+  return pure ? kRotationGateScale * threshold : threshold;
+}
+
 // The inliers of `fit` at its full gate, in index order, into scratch.order (its residuals those
 // of squaredResidualsOf); returns their count, and with `near` how many usable matches lie between
 // one and kNearMissGates gates.
@@ -933,8 +940,7 @@ size_t selectInliers(FrameMatches& m, const RefinedRotation& fit, double thresho
   FrameMatches::Scratch& s = m.scratch;
   const size_t n = m.size();
   squaredResidualsOf(m, fit);
-  const bool pure = fit.pure_rotation || fit.translation.isZero();
-  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  const double gate = fullGate(fit, threshold);
   const double inside2 = gate * gate, near2 = kNearMissGates * kNearMissGates * inside2;
   s.order.resize(n);
   size_t count = 0, near_count = 0;
@@ -1038,16 +1044,12 @@ bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {
 }
 
 double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double threshold) {
-  const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
-  const bool pure = refined.pure_rotation || refined.translation.isZero();
-  squaredResidualsOf(m, refined);
-  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  selectInliers(m, refined, threshold);
   std::vector<std::array<double, 2>>& points = s.plane;
   points.clear();
-  for (size_t i = 0; i < n; ++i) {
-    if (usable(s, i) && s.residuals[i] < gate * gate && m.pz[i] >= kMinHullDepth)
-      points.push_back({m.px[i] / m.pz[i], m.py[i] / m.pz[i]});
+  for (const uint32_t i : s.order) {
+    if (m.pz[i] >= kMinHullDepth) points.push_back({m.px[i] / m.pz[i], m.py[i] / m.pz[i]});
   }
   if (points.size() < 3) return 0.0;
   // Andrew's monotone chain: the lower hull left to right, then the upper one back.
@@ -1079,7 +1081,7 @@ JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined,
   const bool pure = refined.pure_rotation || refined.translation.isZero();
   // A fitted row skew (never exactly zero) takes part as fitRowSkew fitted it.
   const bool skewed = !refined.row_skew.isZero();
-  const double gate = pure ? kRotationGateScale * threshold : threshold;
+  const double gate = fullGate(refined, threshold);
   size_t near = 0;
   const size_t count = selectInliers(m, refined, threshold, &near);
   std::vector<uint32_t>& order = s.order;
