@@ -654,9 +654,29 @@ TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenTooFewAreExplained) 
   EXPECT_TRUE(choice.contenders.empty());
   choice.winner = refinedAt(R, Vector3d(1, 0, 0), 50, 1e9);  // a wrong translation explaining 10 %
   EXPECT_TRUE(vg::restartFromTranslations(matches, threshold, 10, &choice));
-  EXPECT_EQ(choice.contenders.size(), 9u);  // one start, nine directions
+  EXPECT_EQ(choice.contenders.size(), 13u);  // one start, 13 directions
   EXPECT_GT(std::abs(choice.winner.translation.dot(t.normalized())), std::cos(2.0 * kDeg));
   EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.05 * kDeg);
+}
+
+// A translation along a body diagonal of the camera frame lies 35 deg from every axis and face
+// diagonal. Near structure with half the matches wrong, from a rotation a degree off, a start that
+// far converges to a wrong basin (3.6 deg off from the nine axes and face diagonals alone); the
+// corners' starts reach the translation.
+TEST(CandidateRefinement, RestartsReachATranslationBetweenTheImageAxesAndForward) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(2.0 * kDeg, 1.5 * kDeg, 1.0 * kDeg);
+  const Vector3d t = 0.1 * Vector3d(-1.0, -1.0, 1.0).normalized();
+  const Scene s = makeScene(R, t, 600, 0.5e-3, 0.5, 0.8, 2.0, 31);
+  vg::FrameMatches matches;
+  matches.assign(s.previous, s.current);
+  const double threshold = 0.1 * kDeg;
+  vg::RefinementChoice choice;
+  const Matrix3d off = vg::so3Exp(Vector3d(0.0, 1.0 * kDeg, 0.25 * kDeg)) * R;
+  choice.winner = refinedAt(off, Vector3d(1, 0, 0), 60, 1e9);
+  ASSERT_TRUE(vg::restartFromTranslations(matches, threshold, 10, &choice));
+  EXPECT_EQ(choice.contenders.size(), 13u);
+  EXPECT_GT(std::abs(choice.winner.translation.dot(t.normalized())), std::cos(3.0 * kDeg));
+  EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.15 * kDeg);
 }
 
 TEST(CandidateRefinement, PreviousMotionStartsOnlyWhereTheWinnerMovesElsewhere) {

@@ -267,7 +267,7 @@ enum class VotePart : uint8_t {
   kRefineContenders,  ///< refining every comparable candidate, not only the best-verified one
   kPreviousMotion,    ///< the refinement from the prior rotation and the previous translation
   kValley,            ///< the search along the rotation/translation valley of a close scene
-  kRestarts,          ///< refinements from nine translation directions when too few are explained
+  kRestarts,          ///< refinements from 13 translation directions when too few are explained
   kDescent,           ///< the descent on the truncated cost under the same condition
   kRefitJackknife,    ///< the covariance's refits without each group (many near misses)
   kContenderSpread,   ///< the covariance's spread of the competing refined candidates

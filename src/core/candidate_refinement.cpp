@@ -47,15 +47,19 @@ constexpr std::array<double, 4> kDescentStepsDeg = {0.2, 0.1, 0.05, 0.025};
 constexpr int kDescentMovesPerStep = 20;
 
 // Translation starts of the restarts: unit directions in the camera frame (z forward), one per
-// line through the camera, since a translation is only known up to sign: forward, the two image
-// axes and their diagonals, and the four half-way between forward and an image axis.
-const std::array<Eigen::Vector3d, 9>& restartDirections() {
-  static const std::array<Eigen::Vector3d, 9> directions = [] {
+// line through the camera, since a translation is only known up to sign: the 13 axes of a cube's
+// symmetry (its 3 face normals, 6 edge midpoints and 4 corners), so that every line lies within
+// 27.6 deg of one. Without the corners a line could lie 35 deg from every start, and a refinement
+// from a rotation degrees off (near structure, many matches wrong) did not reach it.
+const std::array<Eigen::Vector3d, 13>& restartDirections() {
+  static const std::array<Eigen::Vector3d, 13> directions = [] {
     const double h = std::sqrt(0.5);
-    return std::array<Eigen::Vector3d, 9>{
+    const double c = std::sqrt(1.0 / 3.0);
+    return std::array<Eigen::Vector3d, 13>{
         Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(1, 0, 0),  Eigen::Vector3d(0, 1, 0),
         Eigen::Vector3d(h, h, 0), Eigen::Vector3d(h, -h, 0), Eigen::Vector3d(h, 0, h),
-        Eigen::Vector3d(-h, 0, h), Eigen::Vector3d(0, h, h), Eigen::Vector3d(0, -h, h)};
+        Eigen::Vector3d(-h, 0, h), Eigen::Vector3d(0, h, h), Eigen::Vector3d(0, -h, h),
+        Eigen::Vector3d(c, c, c), Eigen::Vector3d(-c, c, c), Eigen::Vector3d(c, -c, c), Eigen::Vector3d(-c, -c, c)};
   }();
   return directions;
 }

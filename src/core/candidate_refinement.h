@@ -54,7 +54,7 @@ bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_v
 
 /// When the winner explains fewer than kRestartInlierFraction of the matches, refinements of
 /// general motion from the winner's rotation and from the two best-refined contenders elsewhere,
-/// each with nine translation directions covering the lines through the camera, challenge it.
+/// each with 13 translation directions covering the lines through the camera, challenge it.
 /// True when one of them won.
 bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
 
