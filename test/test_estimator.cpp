@@ -641,7 +641,7 @@ TEST(CandidateRefinement, ValleySearchLeavesAWrongBasinAlongTheValley) {
   EXPECT_FALSE(moved);
 }
 
-TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenTooFewAreExplained) {
+TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenAGeneralWinnerExplainsTooFew) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.0, 0.1 * kDeg);
   const Vector3d t(0.0, 0.2, 1.0);
   const Scene s = makeScene(R, t, 500, 0.5e-3, 0.1, 2, 10, 9);
@@ -650,6 +650,9 @@ TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenTooFewAreExplained) 
   const double threshold = 0.1 * kDeg;
   vg::RefinementChoice choice;
   choice.winner = refinedAt(R, Vector3d(1, 0, 0), 450, 1e9);  // explains 90 %: no restart
+  EXPECT_FALSE(vg::restartFromTranslations(matches, threshold, 10, &choice));
+  EXPECT_TRUE(choice.contenders.empty());
+  choice.winner = refinedAt(R, Vector3d::Zero(), 50, 1e9);  // a pure rotation explaining 10 %: no restart
   EXPECT_FALSE(vg::restartFromTranslations(matches, threshold, 10, &choice));
   EXPECT_TRUE(choice.contenders.empty());
   choice.winner = refinedAt(R, Vector3d(1, 0, 0), 50, 1e9);  // a wrong translation explaining 10 %

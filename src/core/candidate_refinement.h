@@ -52,10 +52,10 @@ bool refineFromPreviousMotion(FrameMatches& matches, const Eigen::Matrix3d& prio
 bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_verified, double threshold,
                   int iterations, uint64_t seed, RefinementChoice* choice, bool* moved);
 
-/// When the winner explains fewer than kRestartInlierFraction of the matches, refinements of
-/// general motion from the winner's rotation and from the two best-refined contenders elsewhere,
-/// each with 13 translation directions covering the lines through the camera, challenge it.
-/// True when one of them won.
+/// When a general-motion winner explains fewer than kRestartInlierFraction of the matches,
+/// refinements of general motion from the winner's rotation and from the two best-refined
+/// contenders elsewhere, each with 13 translation directions covering the lines through the
+/// camera, challenge it. True when one of them won.
 bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
 
 /// Under the same condition as the restarts, a general-motion winner descends on the truncated
