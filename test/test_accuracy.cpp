@@ -186,26 +186,24 @@ TEST(EurocShake, VoteBeatsFivePointWithoutLockIn) {
 // of one frame sat 2.1 deg from the truth, in another basin with another translation, where the
 // truth with a fitted translation explained 669 matches against its 545: the restarts from the
 // winner's rotation could not reach it, those from the contenders' rotations do (RMSE 0.32 ->
-// 0.12 deg, worst frame 2.07 -> 0.67 deg). A frame this hard can tip either way with a pixel more or less of search
-// radius (the previous covariance sets it), so three estimator seeds are judged: each honest,
-// none with more than one invalid frame, and the middle one accurate.
+// 0.12 deg, worst frame 2.07 -> 0.67 deg). Another frame's right motion had a translation 35 deg
+// from every restart direction until the corners joined them: one seed of three lost it (invalid,
+// RMSE 0.84 deg). Three estimator seeds are judged: each honest, without an invalid frame, and
+// accurate.
 TEST(EurocShake, HalfTheMatchesWrongAtHalfTheRateFindsTheRightBasin) {
   std::string why;
   const std::string folder = sharedOrSkip("euroc_mh01_shake", &why);
   if (folder.empty()) GTEST_SKIP() << why;
-  std::vector<double> rmse;
   for (const int seed : {1, 2, 3}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     const Figures f = evaluate(folder, "vote", "--backend cpu --stride 2 --outliers 0.5 --seed " + std::to_string(seed));
     std::printf("seed %d: RMSE %.3f deg, worst %.3f deg, invalid %.0f, NEES %.2f, %.0f %% beyond\n", seed,
                 f.at("vote.rot_rmse_deg"), f.at("vote.rot_max_deg"), f.at("vote.invalid"), f.at("vote.nees_mean"),
                 100.0 * f.at("vote.nees_beyond_99"));
-    EXPECT_LE(f.at("vote.invalid"), 1);
+    EXPECT_EQ(f.at("vote.invalid"), 0);
     expectHonestCovariance(f, "vote");
-    rmse.push_back(f.at("vote.rot_rmse_deg"));
+    EXPECT_LE(f.at("vote.rot_rmse_deg"), 0.2);
   }
-  std::sort(rmse.begin(), rmse.end());
-  EXPECT_LE(rmse[1], 0.2);
 }
 
 // Pairs five frames apart near structure (about 5 deg and 10 cm a pair): along the
