@@ -148,8 +148,12 @@ class ValleySteps {
   bool stepped_ = false;
 };
 
-// Whether the winner explains fewer matches than the restarts and the descent accept.
-bool explainsTooFew(const FrameMatches& matches, const RefinedRotation& winner) {
+// Where the restarts and the descent run: a general-motion winner explaining fewer matches than
+// they accept. A pure rotation's model choice found no translation worth its two parameters, and
+// more tries at one only raise the odds that a translation chosen among wrong matches clears the
+// margin (a dim, blurred room's pure frame of 100 matches: 69 inliers against a restart's 82).
+bool generalWinnerExplainsTooFew(const FrameMatches& matches, const RefinedRotation& winner) {
+  if (winner.pure_rotation || winner.translation.isZero()) return false;
   return winner.inliers < kRestartInlierFraction * static_cast<double>(matches.size());
 }
 
@@ -261,11 +265,9 @@ bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_v
 // right rotation, too far for any translation to bring the right matches within the gate, while a
 // contender sits in the right basin and lost only through its translation; so the contenders'
 // rotations are starts too. Frames whose matches are mostly explained never run this, nor frames
-// that a pure rotation won: the model choice found no translation worth its two parameters, and 39
-// more tries at one only raise the odds that a translation chosen among wrong matches clears the
-// margin (a dim, blurred room's pure frame of 100 matches: 69 inliers against a restart's 82).
+// that a pure rotation won.
 bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice) {
-  if (choice->winner.pure_rotation || !explainsTooFew(matches, choice->winner)) return false;
+  if (!generalWinnerExplainsTooFew(matches, choice->winner)) return false;
   std::array<Eigen::Matrix3d, 1 + kRestartContenders> starts;
   starts[0] = choice->winner.rotation;
   size_t start_count = 1;
@@ -295,7 +297,7 @@ bool restartFromTranslations(FrameMatches& matches, double threshold, int iterat
 // its covariance.
 bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice) {
   const RefinedRotation& winner = choice->winner;
-  if (!explainsTooFew(matches, winner) || winner.pure_rotation || winner.translation.isZero()) return false;
+  if (!generalWinnerExplainsTooFew(matches, winner)) return false;
   Eigen::Matrix3d rotation = winner.rotation;
   Eigen::Vector3d translation = winner.translation;
   double cost = fittedTranslationCost(matches, rotation, &translation, threshold, kValleyRefits);
