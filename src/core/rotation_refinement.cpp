@@ -147,15 +147,6 @@ void rotateAll(FrameMatches& m, const Eigen::Matrix3d& R) {
   s.counting = false;
 }
 
-// a[i] of even i into even[], of odd i into odd[] (a de-interleave the compiler vectorises).
-void splitByParity(size_t n, const double* __restrict a, double* __restrict even, double* __restrict odd) {
-  for (size_t j = 0; j < n / 2; ++j) {
-    even[j] = a[2 * j];
-    odd[j] = a[2 * j + 1];
-  }
-  if (n % 2 == 1) even[n / 2] = a[n - 1];
-}
-
 // The usable matches of the last rotateAll in the counting arrays (even indices, then odd ones).
 // The translation counts of a verification (up to some seventy per rotation) then read
 // contiguous arrays with no hemisphere test, and the sampled counts only the first group.
@@ -166,21 +157,6 @@ void prepareCounting(FrameMatches& m) {
   for (std::vector<double>* v : {&s.qnx, &s.qny, &s.qnz, &s.qpx, &s.qpy, &s.qpz, &s.qrx, &s.qry, &s.qrz})
     v->resize(n);
   s.odd_start = (n + 1) / 2;
-  bool all_usable = true;
-  for (size_t i = 0; i < n; ++i) all_usable &= usable(s, i);
-  if (all_usable) {
-    // Nearly always so: the groups are the arrays split by parity, b_prev's split once per frame.
-    const std::vector<double>* from[6] = {&s.rx, &s.ry, &s.rz, &s.nx, &s.ny, &s.nz};
-    std::vector<double>* to[6] = {&s.qrx, &s.qry, &s.qrz, &s.qnx, &s.qny, &s.qnz};
-    for (int a = 0; a < 6; ++a) splitByParity(n, from[a]->data(), to[a]->data(), to[a]->data() + s.odd_start);
-    s.even_count = s.odd_start;
-    s.odd_count = n / 2;
-    const double* counted[9] = {m.split_px.data(), m.split_py.data(), m.split_pz.data(), s.qrx.data(), s.qry.data(),
-                                s.qrz.data(),      s.qnx.data(),      s.qny.data(),      s.qnz.data()};
-    std::copy(counted, counted + 9, s.counted);
-    s.counting = true;
-    return;
-  }
   // Without branches: each match is written at the group's next place, which only a usable one
   // then takes (a group's place never reaches the next group: it counts the group's matches before).
   size_t next[2] = {0, s.odd_start};
@@ -202,9 +178,6 @@ void prepareCounting(FrameMatches& m) {
   }
   s.even_count = next[0];
   s.odd_count = next[1] - s.odd_start;
-  const double* counted[9] = {s.qpx.data(), s.qpy.data(), s.qpz.data(), s.qrx.data(), s.qry.data(),
-                              s.qrz.data(), s.qnx.data(), s.qny.data(), s.qnz.data()};
-  std::copy(counted, counted + 9, s.counted);
   s.counting = true;
 }
 
@@ -216,8 +189,8 @@ void prepareCounting(FrameMatches& m) {
 int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double gate, bool sampled, int beat) {
   constexpr size_t kBlock = 64;
   const FrameMatches::Scratch& s = m.scratch;
-  const passes::MatchArrays arrays = {s.counted[0], s.counted[1], s.counted[2], s.counted[3], s.counted[4],
-                                      s.counted[5], s.counted[6], s.counted[7], s.counted[8], nullptr};
+  const passes::MatchArrays arrays = {s.qpx.data(), s.qpy.data(), s.qpz.data(), s.qrx.data(), s.qry.data(),
+                                      s.qrz.data(), s.qnx.data(), s.qny.data(), s.qnz.data(), nullptr};
   const auto count_within = passes::passes().countWithinGate;
   const double gate2 = gate * gate;
   const size_t groups[2][2] = {{0, s.even_count}, {s.odd_start, s.odd_start + s.odd_count}};
@@ -628,12 +601,6 @@ void FrameMatches::assignWithout(const FrameMatches& from, const std::vector<int
 }
 
 void FrameMatches::finishAssign() {
-  const size_t n = size();
-  const size_t odd_start = (n + 1) / 2;
-  for (std::vector<double>* v : {&split_px, &split_py, &split_pz}) v->resize(n);
-  splitByParity(n, px.data(), split_px.data(), split_px.data() + odd_start);
-  splitByParity(n, py.data(), split_py.data(), split_py.data() + odd_start);
-  splitByParity(n, pz.data(), split_pz.data(), split_pz.data() + odd_start);
   all_gathered = false;
   scratch.rotated = false;
   scratch.counting = false;

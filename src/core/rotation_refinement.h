@@ -26,9 +26,6 @@ class FrameMatches {
 
   /// Coordinates of the bearings in the previous (p*) and the current (c*) frame.
   std::vector<double> px, py, pz, cx, cy, cz;
-  /// px, py, pz split by index parity: those of even index from 0, those of odd index from
-  /// (size() + 1) / 2 (the translation counts' order when every match is usable).
-  std::vector<double> split_px, split_py, split_pz;
   /// Every match as the summing passes read gathered ones (in the order passes::gatheredPosition
   /// gives, padded with zero bearings to whole chunks); filled when first needed (all_gathered).
   std::vector<double> all_px, all_py, all_pz, all_cx, all_cy, all_cz;
@@ -53,13 +50,10 @@ class FrameMatches {
     bool rotated = false;
     /// The usable matches at `rotation` as the translation counts read them (valid when
     /// `counting`): those of even index from 0 (even_count of them), those of odd index from
-    /// odd_start (odd_count), each group in index order. `counted` points at the arrays: the q*
-    /// ones (n = b_prev x R b_cur, b_prev, R b_cur), or for b_prev the frame's split_p* when every
-    /// match is usable.
+    /// odd_start (odd_count), each group in index order (n = b_prev x R b_cur, b_prev, R b_cur).
     std::vector<double> qnx, qny, qnz, qpx, qpy, qpz, qrx, qry, qrz;
     size_t even_count = 0, odd_start = 0, odd_count = 0;
     bool counting = false;
-    const double* counted[9] = {};  ///< p x, y, z, then R b_cur, then n
     std::vector<uint32_t> moving;  ///< matches a pure rotation does not explain (verification)
     /// The jackknife's inliers, ordered into spatial groups, and each match's group (-1: none).
     std::vector<uint32_t> order;
