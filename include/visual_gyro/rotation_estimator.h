@@ -151,10 +151,10 @@ struct VoteDiagnostics {
   bool wide_vote = false;   ///< the wide (prior-free) vote ran as well
   /// Where the winning candidate came from: "narrow" or "wide" (a vote cell), "prior" (the prior
   /// itself), "identity", "previous_motion" (the refinement started from the prior rotation and
-  /// the previous frame's translation direction), "restart" (a general-motion winner's refinement
-  /// restarted from its rotation, or a contender's when it explained too few matches, with another
-  /// translation direction), or "descent" (a refinement from the end of a general-motion winner's
-  /// descent on the truncated cost); "" when none was verified.
+  /// the previous frame's translation direction), "restart" (a refinement restarted from the
+  /// winner's or a contender's rotation with another translation direction, when the winner
+  /// explained too few matches), or "descent" (a refinement from the end of a descent on the
+  /// truncated cost, under the same condition); "" when none was verified.
   std::string winner_source;
   int candidates_verified = 0;  ///< candidate rotations checked against all matches
   /// The rotation/translation valley of a close scene was searched (general motion with a
@@ -164,11 +164,11 @@ struct VoteDiagnostics {
   /// The refinement started from the previous frame's motion (the prior rotation and the previous
   /// translation direction) won.
   bool previous_motion_won = false;
-  /// A refinement restarted from a general-motion winner's rotation, or a contender's when the
-  /// winner explained too few of the matches, with another translation direction won.
+  /// A refinement restarted from the winner's or a contender's rotation with another translation
+  /// direction (run when the winner explained too few of the matches) won.
   bool restart_won = false;
   /// The refinement from the end of the descent on the truncated cost (run after the restarts,
-  /// from a general-motion winner) won.
+  /// under the same condition) won.
   bool descent_won = false;
   int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
   int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation
@@ -267,8 +267,8 @@ enum class VotePart : uint8_t {
   kRefineContenders,  ///< refining every comparable candidate, not only the best-verified one
   kPreviousMotion,    ///< the refinement from the prior rotation and the previous translation
   kValley,            ///< the search along the rotation/translation valley of a close scene
-  kRestarts,          ///< refinements of a general motion from 13 translation directions
-  kDescent,           ///< a general motion's descent on the truncated cost
+  kRestarts,          ///< refinements from 13 translation directions when too few are explained
+  kDescent,           ///< the descent on the truncated cost under the same condition
   kRefitJackknife,    ///< the covariance's refits without each group (many near misses)
   kContenderSpread,   ///< the covariance's spread of the competing refined candidates
   kRowSkew,           ///< a pure rotation's change down the image (a rolling shutter's)

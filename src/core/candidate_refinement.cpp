@@ -29,10 +29,10 @@ constexpr double kValleyInlierRatio = 0.85;
 // to it, as the winner is at its refined one, or the winner's tighter translation alone would make
 // it look better than a step in the right basin.
 constexpr int kValleyRefits = 3;
-// A winner explaining fewer than this fraction of the matches is restarted from the contenders'
-// rotations too. Below it lie frames whose every candidate may share one wrong basin; above it,
-// frames where the right motion already explains nearly every correct match (on the rendered close
-// scene the right motion explains 94-97 % of the matches).
+// A winner explaining fewer than this fraction of the matches is refined again from several
+// translation directions. Below it lie frames whose every candidate may share one wrong basin;
+// above it, frames where the right motion already explains nearly every correct match (on the
+// rendered close scene the right motion explains 94-97 % of the matches).
 constexpr double kRestartInlierFraction = 0.8;
 // Refined contenders whose rotations the restarts also start from, and how far [deg] a start must
 // lie from every other start (nearer ones converge alike).
@@ -148,9 +148,12 @@ class ValleySteps {
   bool stepped_ = false;
 };
 
-// Where the restarts start from the contenders too: a winner explaining fewer matches than they
-// accept, whose every candidate may share one wrong basin.
-bool winnerExplainsTooFew(const FrameMatches& matches, const RefinedRotation& winner) {
+// Where the restarts and the descent run: a general-motion winner explaining fewer matches than
+// they accept. A pure rotation's model choice found no translation worth its two parameters, and
+// more tries at one only raise the odds that a translation chosen among wrong matches clears the
+// margin (a dim, blurred room's pure frame of 100 matches: 69 inliers against a restart's 82).
+bool generalWinnerExplainsTooFew(const FrameMatches& matches, const RefinedRotation& winner) {
+  if (winner.pure_rotation || winner.translation.isZero()) return false;
   return winner.inliers < kRestartInlierFraction * static_cast<double>(matches.size());
 }
 
@@ -254,31 +257,26 @@ bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_v
   return true;
 }
 
-// A refinement converges to the basin of its start, and a weakly determined translation has
-// several: a hand moving the camera by centimetres gives basins whose translations lie 70 deg
-// apart, each explaining 92-95 % of the matches, the right one's truncated cost 17 % lower. A count
-// cannot tell that the search missed it, so every general-motion winner restarts from its own
-// rotation. At large motion near structure (pairs several frames apart, a prior degrees off) every
-// voted rotation can be biased alike by the translation, every candidate start in one wrong basin;
-// with many wrong matches the winner can also be a wrong basin a degree or two from the right
-// rotation, too far for any translation to bring the right matches within the gate, while a
-// contender sits in the right basin and lost only through its translation. Such a winner explains
-// clearly fewer matches than the right motion would, and the contenders' rotations are starts too.
-// A pure rotation's model choice found no translation worth its two parameters, and more tries at
-// one only raise the odds that a translation chosen among wrong matches clears the margin (a dim,
-// blurred room's pure frame of 100 matches: 69 inliers against a restart's 82): it never restarts.
+// At large motion near structure (pairs several frames apart, a prior degrees off) every voted
+// rotation can be biased alike by the translation, every candidate start in one wrong basin (a
+// forward translation with a rotation degrees off, say): the winner then explains clearly fewer
+// matches than the right motion would, with a covariance as tight as a right one's. With many
+// wrong matches near structure the winner can also be a wrong basin a degree or two from the
+// right rotation, too far for any translation to bring the right matches within the gate, while a
+// contender sits in the right basin and lost only through its translation; so the contenders'
+// rotations are starts too. Frames whose matches are mostly explained never run this, nor frames
+// that a pure rotation won.
 bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice) {
-  if (choice->winner.pure_rotation) return false;
+  if (!generalWinnerExplainsTooFew(matches, choice->winner)) return false;
   std::array<Eigen::Matrix3d, 1 + kRestartContenders> starts;
   starts[0] = choice->winner.rotation;
   size_t start_count = 1;
-  const size_t wanted = winnerExplainsTooFew(matches, choice->winner) ? starts.size() : 1;
   const auto elsewhere = [&](const Eigen::Matrix3d& rotation) {
     for (size_t k = 0; k < start_count; ++k)
       if (rotationAngleBetween(starts[k], rotation) < kRestartSeparationDeg * kDeg) return false;
     return true;
   };
-  while (start_count < wanted) {
+  while (start_count < starts.size()) {
     const RefinedRotation* best = nullptr;
     for (const RefinedRotation& c : choice->contenders)
       if ((best == nullptr || c.inliers > best->inliers) && elsewhere(c.rotation)) best = &c;
@@ -292,15 +290,14 @@ bool restartFromTranslations(FrameMatches& matches, double threshold, int iterat
   return won;
 }
 
-// Every refinement minimises a Tukey cost under an adaptive gate; that cost has local minima where
-// it stops short of the truncated cost's minimum (the criterion that chooses between refinements),
-// with the right translation already: 0.1-0.7 deg with many matches unexplained, hundredths of a
-// degree near structure with most explained. Small steps on the truncated cost cross them; a
-// refinement from where they end gives a stationary point, and its covariance. A pure rotation
-// does not descend, for the reason it does not restart.
+// Every refinement minimises a Tukey cost under an adaptive gate; with many matches unexplained
+// that cost has local minima where it stops 0.1-0.7 deg short of the truncated cost's minimum (the
+// criterion that chooses between refinements), with the right translation already. Small steps on
+// the truncated cost cross them; a refinement from where they end gives a stationary point, and
+// its covariance.
 bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice) {
   const RefinedRotation& winner = choice->winner;
-  if (winner.pure_rotation) return false;
+  if (!generalWinnerExplainsTooFew(matches, winner)) return false;
   Eigen::Matrix3d rotation = winner.rotation;
   Eigen::Vector3d translation = winner.translation;
   double cost = fittedTranslationCost(matches, rotation, &translation, threshold, kValleyRefits);

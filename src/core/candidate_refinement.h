@@ -52,15 +52,16 @@ bool refineFromPreviousMotion(FrameMatches& matches, const Eigen::Matrix3d& prio
 bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_verified, double threshold,
                   int iterations, uint64_t seed, RefinementChoice* choice, bool* moved);
 
-/// Refinements of general motion from a general-motion winner's rotation, and when it explains
-/// fewer than kRestartInlierFraction of the matches also from the two best-refined contenders
-/// elsewhere, each with 13 translation directions covering the lines through the camera,
-/// challenge it. A pure-rotation winner is left alone. True when one of them won.
+/// When a general-motion winner explains fewer than kRestartInlierFraction of the matches,
+/// refinements of general motion from the winner's rotation and from the two best-refined
+/// contenders elsewhere, each with 13 translation directions covering the lines through the
+/// camera, challenge it. True when one of them won.
 bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
 
-/// A general-motion winner descends on the truncated cost itself (steps of kDescentStepsDeg about
-/// the camera axes, each step's translation refitted, the best step taken while it lowers the
-/// cost); a refinement from where it ends challenges the winner. True when it won.
+/// Under the same condition as the restarts, a general-motion winner descends on the truncated
+/// cost itself (steps of kDescentStepsDeg about the camera axes, each step's translation refitted,
+/// the best step taken while it lowers the cost); a refinement from where it ends challenges the
+/// winner. True when it won.
 bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
 
 /// Once the refinements are chosen (on their rigid fits), where a frame's matches call for the row
