@@ -444,9 +444,8 @@ TEST(Verification, FittedTranslationLowersTheCostTowardTheTruth) {
   matches.assign(scene.previous, scene.current);
   const double threshold = 0.1 * kDeg;
   const Vector3d start = Eigen::AngleAxisd(10 * kDeg, Vector3d::UnitY()) * t;
-  const double start_cost = vg::truncatedEpipolarCost(matches, R, start, threshold);
   Vector3d unchanged = start;
-  EXPECT_EQ(vg::fittedTranslationCost(matches, R, &unchanged, threshold, 0), start_cost);
+  const double start_cost = vg::fittedTranslationCost(matches, R, &unchanged, threshold, 0);
   EXPECT_EQ(unchanged, start);
   Vector3d fitted = start;
   const double fitted_cost = vg::fittedTranslationCost(matches, R, &fitted, threshold, 3);

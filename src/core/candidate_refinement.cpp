@@ -105,7 +105,7 @@ class ValleySteps {
  public:
   ValleySteps(FrameMatches& matches, const RefinedRotation& winner, double threshold, uint64_t seed)
       : matches_(matches), winner_(winner), threshold_(threshold), seed_(seed),
-        winner_cost_(truncatedEpipolarCost(matches, winner.rotation, winner.translation, threshold)),
+        winner_cost_(costAtOwnTranslation(matches, winner, threshold)),
         best_cost_(winner_cost_) {}
 
   // Every step about `axis`, then the parabola's vertex between the lowest and its neighbours
@@ -124,6 +124,11 @@ class ValleySteps {
   const VerifiedRotation* best() const { return stepped_ ? &best_step_ : nullptr; }
 
  private:
+  static double costAtOwnTranslation(FrameMatches& matches, const RefinedRotation& r, double threshold) {
+    Eigen::Vector3d translation = r.translation;
+    return fittedTranslationCost(matches, r.rotation, &translation, threshold, 0);
+  }
+
   double tryStep(const Eigen::Vector3d& axis, double step_deg) {
     const Eigen::Matrix3d rotation = so3Exp(step_deg * kDeg * axis) * winner_.rotation;
     VerifiedRotation v = verifyRotation(matches_, rotation, threshold_, seed_ + 7);

@@ -524,8 +524,9 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   return out;
 }
 
-/// truncatedEpipolarCost() for the normals in the scratch (those of the rotation last applied by
-/// rotateAll), so that several translations are costed without rotating the matches again.
+/// fittedTranslationCost()'s truncated cost of `translation` for the normals in the scratch (those
+/// of the rotation last applied by rotateAll), so that several translations are costed without
+/// rotating the matches again.
 double truncatedCostOfNormals(FrameMatches& m, const Eigen::Vector3d& translation, double threshold) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
@@ -715,12 +716,6 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
 RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotation,
                              const Eigen::Vector3d& translation, double threshold, int iterations) {
   return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations);
-}
-
-double truncatedEpipolarCost(FrameMatches& m, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
-                             double threshold) {
-  rotateAll(m, rotation);
-  return truncatedCostOfNormals(m, translation, threshold);
 }
 
 namespace {

@@ -92,16 +92,13 @@ VerifiedRotation verifyRotation(FrameMatches& matches, const Eigen::Matrix3d& ro
                                 uint64_t seed);
 
 /// The truncated quadratic cost [rad^2] of `rotation` with the unit translation direction
-/// `translation` (previous frame) over all the matches: each match's squared angular distance from
+/// *translation (previous frame) over all the matches: each match's squared angular distance from
 /// its epipolar plane, at most threshold^2 (also for a match behind either camera). Lower is a
-/// tighter explanation; comparable between rotations of one frame at one threshold.
-double truncatedEpipolarCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
-                             double threshold);
-
-/// truncatedEpipolarCost() of `rotation` with the translation that least-squares refits over the
-/// inliers reach from *translation (at most `refits`, each kept only when it lowers the cost);
-/// *translation becomes that translation. A rotation's cost at its own fitted translation, not at
-/// a sampled one, is what compares it fairly with a refined rotation.
+/// tighter explanation; comparable between rotations of one frame at one threshold. The
+/// translation is first refitted by least squares over the inliers (at most `refits` times, each
+/// kept only when it lowers the cost); *translation becomes the one costed. A rotation's cost at
+/// its own fitted translation, not at a sampled one, is what compares it fairly with a refined
+/// rotation.
 double fittedTranslationCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
                              double threshold, int refits);
 
