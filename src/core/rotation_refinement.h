@@ -68,7 +68,7 @@ class FrameMatches {
   Scratch scratch;
 
  private:
-  /// The parity split and the reset of what was derived from the previous matches.
+  /// Resets what was derived from the previous matches.
   void finishAssign();
 };
 
