@@ -562,7 +562,7 @@ struct CovarianceFixture {
     in.iterations = 10;
   }
   Matrix3d covariance(const std::vector<vg::RefinedRotation>& contenders = {}) {
-    return vg::voteCovariance(matches, &refit, winner, contenders, in, &diagnostics);
+    return vg::voteCovariance(matches, &refit, winner, contenders, in, &diagnostics).covariance;
   }
 };
 
@@ -732,6 +732,34 @@ TEST(VoteCovariance, ContendersWidenItAndTheFloorsHold) {
   EXPECT_TRUE(f.covariance(contenders).isApprox(alone, 1e-12));
   f.in.min_variance = 1e-3;
   EXPECT_DOUBLE_EQ(f.covariance()(1, 1), 1e-3);
+}
+
+// The estimate where several basins explain the matches alike: the contenders of the winner's own
+// model, weighted by their count and by their cost over the scale's independent matches.
+TEST(VoteCovariance, MixtureMeanWeighsTheWinnersModelByCountAndCost) {
+  vg::RefinedRotation winner = refinedAt(Matrix3d::Identity(), Vector3d::UnitZ(), 100, 1e-6);
+  winner.residual_sigma = 1e-4;  // one chi-square unit of cost: 1e-8 rad^2 at scale 1
+  const Vector3d away = Vector3d::UnitY() * kDeg;
+  const auto at = [](const Vector3d& d, int inliers, double cost) {
+    return refinedAt(vg::so3Exp(d), Vector3d::UnitX(), inliers, cost);
+  };
+  const auto offset = [&](const std::vector<vg::RefinedRotation>& contenders, double scale) {
+    return vg::so3Log(vg::mixtureMean(winner, contenders, scale));
+  };
+  EXPECT_TRUE(offset({}, 1.0).isZero(1e-15));
+  EXPECT_TRUE(offset({at(away, 100, 1e-6)}, 1.0).isApprox(0.5 * away, 1e-9)) << "as likely: halfway";
+  EXPECT_TRUE(offset({at(away, 100, 1e-6), at(-away, 100, 1e-6)}, 1.0).isZero(1e-12)) << "basins either side";
+  EXPECT_LT(offset({at(away, 0, 1e-6)}, 1.0).norm(), 1e-15) << "a count ten deviations behind weighs nothing";
+  // A cost 8 chi-square units above the winner's weighs exp(-4); where four matches count as one, exp(-1).
+  for (const double scale : {1.0, 4.0}) {
+    const double w = std::exp(-4.0 / scale);
+    EXPECT_NEAR(offset({at(away, 100, 1e-6 + 8e-8)}, scale).y(), kDeg * w / (1 + w), 1e-12) << scale;
+  }
+  // Another model's costs do not compare: a pure rotation, a row skew's fit.
+  vg::RefinedRotation skewed = at(away, 100, 1e-6);
+  skewed.row_skew = Vector3d(0.0, 0.1, 0.0) * kDeg;
+  EXPECT_TRUE(offset({refinedAt(vg::so3Exp(away), Vector3d::Zero(), 100, 1e-6), skewed}, 1.0).isZero(1e-15));
+  EXPECT_STREQ(vg::votePartName(vg::VotePart::kContenderMean), "contender_mean");
 }
 
 TEST(VoteMethod, CovarianceIsPositiveDefiniteAndGrowsWithNoise) {
@@ -1062,7 +1090,7 @@ TEST(CandidateRefinement, RowSkewAndRigidFitAreEachOthersContenders) {
     vg::RefinementChoice choice;
     choice.winner = rigid;
     choice.contenders = {rigid, other};
-    const Matrix3d before = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d);
+    const Matrix3d before = vg::voteCovariance(matches, &refit, rigid, choice.contenders, in, &d).covariance;
     ASSERT_TRUE(vg::addRowSkew(matches, threshold, confirmed, &choice));
     ASSERT_EQ(choice.contenders.size(), 3u);
     EXPECT_EQ(choice.contenders[0].rotation, rigid.rotation) << "the rigid fit stays a contender";
@@ -1078,13 +1106,13 @@ TEST(CandidateRefinement, RowSkewAndRigidFitAreEachOthersContenders) {
     // mixture of two equally likely rotations); the winner's own covariance is the rigid or the
     // skewed fit's, so the unconfirmed case compares like with like.
     if (!confirmed) {
-      const Matrix3d after = vg::voteCovariance(matches, &refit, choice.winner, choice.contenders, in, &d);
+      const Matrix3d after = vg::voteCovariance(matches, &refit, choice.winner, choice.contenders, in, &d).covariance;
       const Vector3d u = moved.normalized();
       EXPECT_NEAR(u.dot(after * u) - u.dot(before * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
     } else {
       std::vector<vg::RefinedRotation> without_rigid = {other, skewed};
-      const Matrix3d alone = vg::voteCovariance(matches, &refit, choice.winner, without_rigid, in, &d);
-      const Matrix3d after = vg::voteCovariance(matches, &refit, choice.winner, choice.contenders, in, &d);
+      const Matrix3d alone = vg::voteCovariance(matches, &refit, choice.winner, without_rigid, in, &d).covariance;
+      const Matrix3d after = vg::voteCovariance(matches, &refit, choice.winner, choice.contenders, in, &d).covariance;
       const Vector3d u = moved.normalized();
       EXPECT_NEAR(u.dot(after * u) - u.dot(alone * u), 0.5 * moved.squaredNorm(), 1e-3 * moved.squaredNorm());
     }

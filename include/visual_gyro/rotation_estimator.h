@@ -273,6 +273,7 @@ enum class VotePart : uint8_t {
   kContenderSpread,   ///< the covariance's spread of the competing refined candidates
   kRowSkew,           ///< a pure rotation's change down the image (a rolling shutter's)
   kTranslationSpread, ///< a pure rotation's covariance covering what an unmodelled translation moves
+  kContenderMean,     ///< the estimate as the likelihood-weighted mean of the refinements of its model
   kCount
 };
 /// The part's name in `vote-without-<name>` ("wide_vote", "prior_candidate", ...).

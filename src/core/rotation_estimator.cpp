@@ -127,6 +127,7 @@ const char* votePartName(VotePart part) {
     case VotePart::kContenderSpread: return "contender_spread";
     case VotePart::kRowSkew: return "row_skew";
     case VotePart::kTranslationSpread: return "translation_spread";
+    case VotePart::kContenderMean: return "contender_mean";
     case VotePart::kCount: break;
   }
   return "";
@@ -467,12 +468,16 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   const Eigen::Vector3d translation_offset = partEnabled(VotePart::kTranslationSpread)
                                                  ? translationOffset(w.matches, winner, threshold, iterations)
                                                  : Eigen::Vector3d::Zero();
-  fillAngles(winner.rotation, &result);
   result.translation = winner.pure_rotation ? Eigen::Vector3d::Zero() : winner.translation;
   CovarianceInput covariance{threshold, iterations, refined_positions_, partEnabled(VotePart::kRefitJackknife),
                              partEnabled(VotePart::kContenderSpread), translation_offset, view,
                              settings_.min_covariance_rad2};
-  result.covariance = voteCovariance(w.matches, &w.refit_matches, winner, choice.contenders, covariance, &diagnostics);
+  const VoteCovariance uncertainty =
+      voteCovariance(w.matches, &w.refit_matches, winner, choice.contenders, covariance, &diagnostics);
+  result.covariance = uncertainty.covariance;
+  fillAngles(partEnabled(VotePart::kContenderMean) ? mixtureMean(winner, choice.contenders, uncertainty.scale)
+                                                   : winner.rotation,
+             &result);
   fillVoteResult(vote, choice, prior_rotation, &result);
   if (match_footprint_ > 0.0)
     diagnostics.descriptor_areas = inlierHullArea(w.matches, winner, threshold) / (match_footprint_ * match_footprint_);

@@ -36,20 +36,24 @@ ScaledCovariance scaleFromJackknives(FrameMatches& matches, FrameMatches* refit_
   return out;
 }
 
-// Each contender is weighted by how indistinguishable its inlier count is from the winner's: the
-// count's standard deviation is about sqrt(count) (binomial, most matches inliers), so a contender
-// z such deviations behind weighs exp(-z^2 / 2). The weighted second moment about the winner is
-// that of the mixture of the winner and its contenders (a close scene's rotation/translation
-// valley: two rotations a degree apart, each with its translation, that differ by fewer inliers
-// than the count's own noise).
+// How indistinguishable a contender's inlier count is from the winner's: the count's standard
+// deviation is about sqrt(count) (binomial, most matches inliers), so a contender z such deviations
+// behind weighs exp(-z^2 / 2).
+double countWeight(const RefinedRotation& winner, const RefinedRotation& contender) {
+  const double z = (winner.inliers - contender.inliers) / std::sqrt(std::max(1, winner.inliers));
+  return std::exp(-0.5 * z * z);
+}
+
+// The weighted second moment about the winner is that of the mixture of the winner and its
+// contenders (a close scene's rotation/translation valley: two rotations a degree apart, each with
+// its translation, that differ by fewer inliers than the count's own noise).
 Eigen::Matrix3d contenderSpread(const RefinedRotation& winner, const std::vector<RefinedRotation>& contenders) {
   Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   double weights = 1.0;
   for (const RefinedRotation& c : contenders) {
     const Eigen::Vector3d d = so3Log(winner.rotation.transpose() * c.rotation);
     if (d.norm() < 1e-9) continue;  // converged to the winner itself
-    const double z = (winner.inliers - c.inliers) / std::sqrt(std::max(1, winner.inliers));
-    const double w = std::exp(-0.5 * z * z);
+    const double w = countWeight(winner, c);
     spread += w * d * d.transpose();
     weights += w;
   }
@@ -58,9 +62,9 @@ Eigen::Matrix3d contenderSpread(const RefinedRotation& winner, const std::vector
 
 }  // namespace
 
-Eigen::Matrix3d voteCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
-                               const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
-                               VoteDiagnostics* diagnostics) {
+VoteCovariance voteCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
+                              const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
+                              VoteDiagnostics* diagnostics) {
   ScaledCovariance scaled;
   scaled.inflation = std::max(1.0, winner.inliers / kIntegerPositionsEffectiveMatches);
   if (input.refined_positions) scaled = scaleFromJackknives(matches, refit_matches, winner, input, diagnostics);
@@ -78,7 +82,32 @@ Eigen::Matrix3d voteCovariance(FrameMatches& matches, FrameMatches* refit_matche
   const double floor = rotationCovarianceFloor(input.refined_positions);
   covariance.diagonal().array() += floor * floor;
   for (int k = 0; k < 3; ++k) covariance(k, k) = std::max(covariance(k, k), input.min_variance);
-  return covariance;
+  return {covariance, scaled.inflation};
+}
+
+// Where the matches leave the rotation weakly determined (few, noisy matches; a close scene's
+// valley), refinements of one model end in several basins whose costs differ by less than the
+// matches can tell apart once their shared errors are counted, and on either side of the truth:
+// dim, noisy footage of a drive has lateral translations a degree off both ways. Their likelihood
+// weighted mean is the better estimate there, while a basin clearly beaten by its count or its
+// cost weighs nothing. Only the winner's own model: a pure rotation's 2-D residuals, or a row
+// skew's three more parameters, give costs that do not compare.
+Eigen::Matrix3d mixtureMean(const RefinedRotation& winner, const std::vector<RefinedRotation>& contenders,
+                            double scale) {
+  const double variance = winner.residual_sigma * winner.residual_sigma * scale;
+  if (!(variance > 0.0) || !std::isfinite(variance)) return winner.rotation;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double weights = 1.0;
+  for (const RefinedRotation& c : contenders) {
+    if (c.pure_rotation != winner.pure_rotation || c.row_skew.isZero() != winner.row_skew.isZero()) continue;
+    const Eigen::Vector3d d = so3Log(winner.rotation.transpose() * c.rotation);
+    if (d.norm() < 1e-9) continue;  // converged to the winner itself
+    const double cost = std::max(0.0, c.truncated_cost - winner.truncated_cost) / variance;
+    const double w = countWeight(winner, c) * std::exp(-0.5 * cost);
+    sum += w * d;
+    weights += w;
+  }
+  return winner.rotation * so3Exp(sum / weights);
 }
 
 Eigen::Matrix3d translationSpread(const Eigen::Vector3d& offset, const Eigen::Vector3d& view) {
