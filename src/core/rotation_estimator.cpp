@@ -376,6 +376,19 @@ CandidateVoteInput candidateInput(const RotationEstimator& estimator, VoteWorksp
           estimator.partEnabled(VotePart::kIdentityCandidate)};
 }
 
+// What the covariance model reads of this frame besides the winner.
+CovarianceInput covarianceInput(const RotationEstimator& estimator, FrameMatches& matches, const RefinedRotation& winner,
+                                bool refined_positions, const Eigen::Vector3d& view) {
+  const EstimatorSettings& settings = estimator.settings();
+  const double threshold = settings.inlier_threshold_deg * kDeg;
+  const Eigen::Vector3d translation_offset =
+      estimator.partEnabled(VotePart::kTranslationSpread)
+          ? translationOffset(matches, winner, threshold, settings.refine_iterations)
+          : Eigen::Vector3d::Zero();
+  return {threshold, settings.refine_iterations, refined_positions, estimator.partEnabled(VotePart::kRefitJackknife),
+          estimator.partEnabled(VotePart::kContenderSpread), translation_offset, view, settings.min_covariance_rad2};
+}
+
 // The result's counts and diagnostics from the vote and the chosen refinement.
 void fillVoteResult(const CandidateVote& vote, const RefinementChoice& choice, const Eigen::Vector3d* prior,
                     RotationResult* result) {
@@ -465,15 +478,10 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   }
 
   const RefinedRotation& winner = choice.winner;
-  const Eigen::Vector3d translation_offset = partEnabled(VotePart::kTranslationSpread)
-                                                 ? translationOffset(w.matches, winner, threshold, iterations)
-                                                 : Eigen::Vector3d::Zero();
   result.translation = winner.pure_rotation ? Eigen::Vector3d::Zero() : winner.translation;
-  CovarianceInput covariance{threshold, iterations, refined_positions_, partEnabled(VotePart::kRefitJackknife),
-                             partEnabled(VotePart::kContenderSpread), translation_offset, view,
-                             settings_.min_covariance_rad2};
   const VoteCovariance uncertainty =
-      voteCovariance(w.matches, &w.refit_matches, winner, choice.contenders, covariance, &diagnostics);
+      voteCovariance(w.matches, &w.refit_matches, winner, choice.contenders,
+                     covarianceInput(*this, w.matches, winner, refined_positions_, view), &diagnostics);
   result.covariance = uncertainty.covariance;
   fillAngles(partEnabled(VotePart::kContenderMean) ? mixtureMean(winner, choice.contenders, uncertainty.scale)
                                                    : winner.rotation,
