@@ -2,9 +2,9 @@
 // by how far the matches' errors are from independent, widened to cover the spatial jackknives'
 // spread in every direction, plus the spread of the competing refinements, plus what an unmodelled
 // translation moves a pure rotation by, plus a floor; and the estimate that reads its scale, the
-// mean over the competing refinements (mixtureMean, doc/method.md step 11).
-// doc/covariance.md explains and measures the covariance. Private to src/core; rotation vector covariances
-// [rad^2] of the right perturbation R exp(d), as RefinedRotation::covariance.
+// mean over the competing refinements (mixtureMean, doc/method.md step 11). doc/covariance.md
+// explains and measures the covariance. Private to src/core; rotation vector covariances [rad^2]
+// of the right perturbation R exp(d), as RefinedRotation::covariance.
 #pragma once
 
 #include <vector>
