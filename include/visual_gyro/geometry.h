@@ -76,13 +76,6 @@ inline Eigen::Matrix3d rotationFromYawPitchRoll(double yaw, double pitch, double
       .toRotationMatrix();
 }
 
-/// An angle [rad] wrapped into (-pi, pi].
-inline double wrapAngle(double angle) {
-  if (!std::isfinite(angle)) return angle;
-  angle = std::remainder(angle, 2.0 * kPi);  // [-pi, pi]
-  return angle <= -kPi ? angle + 2.0 * kPi : angle;
-}
-
 /// An angle [deg] wrapped into (-180, 180].
 inline double wrapAngleDeg(double angle_deg) {
   if (!std::isfinite(angle_deg)) return angle_deg;
