@@ -378,15 +378,14 @@ CandidateVoteInput candidateInput(const RotationEstimator& estimator, VoteWorksp
 
 // What the covariance model reads of this frame besides the winner.
 CovarianceInput covarianceInput(const RotationEstimator& estimator, FrameMatches& matches, const RefinedRotation& winner,
-                                bool refined_positions, const Eigen::Vector3d& view) {
-  const EstimatorSettings& settings = estimator.settings();
-  const double threshold = settings.inlier_threshold_deg * kDeg;
-  const Eigen::Vector3d translation_offset =
-      estimator.partEnabled(VotePart::kTranslationSpread)
-          ? translationOffset(matches, winner, threshold, settings.refine_iterations)
-          : Eigen::Vector3d::Zero();
-  return {threshold, settings.refine_iterations, refined_positions, estimator.partEnabled(VotePart::kRefitJackknife),
-          estimator.partEnabled(VotePart::kContenderSpread), translation_offset, view, settings.min_covariance_rad2};
+                                double threshold, bool refined_positions, const Eigen::Vector3d& view) {
+  const int iterations = estimator.settings().refine_iterations;
+  const Eigen::Vector3d translation_offset = estimator.partEnabled(VotePart::kTranslationSpread)
+                                                 ? translationOffset(matches, winner, threshold, iterations)
+                                                 : Eigen::Vector3d::Zero();
+  return {threshold, iterations, refined_positions, estimator.partEnabled(VotePart::kRefitJackknife),
+          estimator.partEnabled(VotePart::kContenderSpread), translation_offset, view,
+          estimator.settings().min_covariance_rad2};
 }
 
 // The result's counts and diagnostics from the vote and the chosen refinement.
@@ -481,7 +480,7 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
   result.translation = winner.pure_rotation ? Eigen::Vector3d::Zero() : winner.translation;
   const VoteCovariance uncertainty =
       voteCovariance(w.matches, &w.refit_matches, winner, choice.contenders,
-                     covarianceInput(*this, w.matches, winner, refined_positions_, view), &diagnostics);
+                     covarianceInput(*this, w.matches, winner, threshold, refined_positions_, view), &diagnostics);
   result.covariance = uncertainty.covariance;
   fillAngles(partEnabled(VotePart::kContenderMean) ? mixtureMean(winner, choice.contenders, uncertainty.scale)
                                                    : winner.rotation,

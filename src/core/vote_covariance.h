@@ -52,8 +52,8 @@ struct VoteCovariance {
 /// diagonal, each diagonal entry at least min_variance.
 /// *diagnostics receives near_miss_share, refit_jackknife and effective_matches.
 VoteCovariance voteCovariance(FrameMatches& matches, FrameMatches* refit_matches, const RefinedRotation& winner,
-                               const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
-                               VoteDiagnostics* diagnostics);
+                              const std::vector<RefinedRotation>& contenders, const CovarianceInput& input,
+                              VoteDiagnostics* diagnostics);
 
 /// The mean rotation of the mixture of `winner` and those `contenders` of its own model (pure
 /// rotation or general motion, with a row skew or without), each weighted by how likely it is
