@@ -325,65 +325,32 @@ struct NormalEquations {
 // unweighted residuals below `gate`, for the covariance.
 enum class Weighting { kTukey, kInliers };
 
-// Match i's bearings (b_prev, then b_cur) at the gathered place `at`.
-inline void putGathered(const FrameMatches& m, size_t i, size_t at, double* const out[6]) {
-  out[0][at] = m.px[i];
-  out[1][at] = m.py[i];
-  out[2][at] = m.pz[i];
-  out[3][at] = m.cx[i];
-  out[4][at] = m.cy[i];
-  out[5][at] = m.cz[i];
-}
-
-// Zero bearings from the `count`-th gathered place to the end of its chunk.
-void padGathered(double* const out[6], size_t count, bool interleaved) {
-  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
-  for (size_t k = count; k < padded; ++k) {
-    const size_t at = passes::gatheredPosition(k, interleaved);
-    for (int a = 0; a < 6; ++a) out[a][at] = 0.0;
-  }
-}
-
-// The six arrays `to` grown to hold `count` gathered matches in whole chunks, their data in *out.
-void gatherTargets(size_t count, std::vector<double>* const to[6], double* out[6]) {
-  const size_t capacity = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
-  for (int a = 0; a < 6; ++a) {
-    if (to[a]->size() < capacity) to[a]->resize(capacity);
-    out[a] = to[a]->data();
-  }
-}
-
 // Gathers every stride-th match whose keep[i] is not zero (every match when keep is nullptr) into
 // the six arrays `to` (b_prev, then b_cur), padded with zero bearings to whole chunks, where the
 // summing pass of this CPU wants them (passes::PassTable). Returns the number gathered.
 size_t gatherMatches(const FrameMatches& m, const double* keep, size_t stride, std::vector<double>* const to[6]) {
   const size_t n = m.size();
   const bool interleaved = passes::passes().interleaved;
+  const size_t capacity = (n + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
   double* out[6];
-  gatherTargets(n, to, out);
+  for (int a = 0; a < 6; ++a) {
+    if (to[a]->size() < capacity) to[a]->resize(capacity);
+    out[a] = to[a]->data();
+  }
+  const double* const from[6] = {m.px.data(), m.py.data(), m.pz.data(), m.cx.data(), m.cy.data(), m.cz.data()};
   // Without branches (whether a match is kept is close to a coin toss in the wide first rounds):
   // each match is written at the next place, which only a kept one then takes; the place a last
-  // dropped match took is padding, zeroed below.
+  // dropped match took is padding, zeroed below with the rest of its chunk.
   size_t count = 0;
   for (size_t i = 0; i < n; i += stride) {
     const size_t at = passes::gatheredPosition(count, interleaved);
-    putGathered(m, i, at, out);
+    for (int a = 0; a < 6; ++a) out[a][at] = from[a][i];
     count += keep == nullptr || keep[i] != 0.0;
   }
-  padGathered(out, count, interleaved);
-  return count;
-}
-
-// Gathers the `count` matches listed in `indices`, in that order, as gatherMatches does.
-size_t gatherListed(const FrameMatches& m, const uint32_t* indices, size_t count, std::vector<double>* const to[6]) {
-  const bool interleaved = passes::passes().interleaved;
-  double* out[6];
-  gatherTargets(count, to, out);
-  for (size_t k = 0; k < count; ++k) {
-    const size_t at = passes::gatheredPosition(k, interleaved), i = indices[k];
-    putGathered(m, i, at, out);
+  const size_t padded = (count + passes::kChunk - 1) / passes::kChunk * passes::kChunk;
+  for (size_t k = count; k < padded; ++k) {
+    for (int a = 0; a < 6; ++a) out[a][passes::gatheredPosition(k, interleaved)] = 0.0;
   }
-  padGathered(out, count, interleaved);
   return count;
 }
 
@@ -918,21 +885,23 @@ size_t selectInliers(FrameMatches& m, const RefinedRotation& fit, double thresho
 }
 
 // The group jackknife of a fit over `groups` spatial groups (group[i], -1: none) in the row skew's
-// model (pure: rotation, skew; general: rotation, translation, skew), from each group's unweighted
-// inliers at the full gate: the Gauss-Newton step of all the groups from the fit, and the
-// covariance of its parameters as the spread of the leave-one-group-out steps (the full step
-// cancels about their mean, so the spread holds at a fit that is no minimum in the skew: a rigid one).
-struct SkewJackknife {
+// model (pure: rotation, skew; general: rotation, translation, skew), the skew held at the fit's
+// unless `fit_skew`, from each group's unweighted inliers at the full gate: the Gauss-Newton step of
+// all the groups from the fit, and the covariance of its parameters as the spread of the
+// leave-one-group-out steps (the full step cancels about their mean, so the spread holds at a fit
+// that is no minimum in the skew: a rigid one).
+struct GroupJackknife {
   SkewVector step;
   SkewMatrix spread;
 };
 
-SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, double threshold,
-                            const std::vector<int>& group, int groups) {
-  const int dim = fit.pure_rotation ? 6 : 8;
+GroupJackknife groupJackknife(const FrameMatches& m, const RefinedRotation& fit, double threshold,
+                              const std::vector<int>& group, int groups, bool fit_skew) {
+  const bool pure = fit.pure_rotation || fit.translation.isZero();
+  const int dim = pure ? 6 : 8;
   std::array<SkewMatrix, kMaxGroups> A;
   std::array<SkewVector, kMaxGroups> g;
-  if (fit.pure_rotation) {
+  if (pure) {
     std::array<RowSkewEquations, kMaxGroups> by_group;
     rowSkewEquations(m, fit.rotation, fit.row_skew, kRotationGateScale * threshold, 0.0, &group, by_group.data());
     for (int k = 0; k < groups; ++k) A[k] = by_group[k].hessian(fit.rotation), g[k] = by_group[k].rhs(fit.rotation);
@@ -942,14 +911,21 @@ SkewJackknife skewJackknife(const FrameMatches& m, const RefinedRotation& fit, d
                             by_group.data());
     for (int k = 0; k < groups; ++k) std::tie(A[k], g[k]) = by_group[k].system(fit.rotation);
   }
+  // A held skew: its three parameters (the last) leave every group's equations.
+  for (int k = 0; k < groups && !fit_skew; ++k) {
+    A[k].bottomRows(3).setZero();
+    A[k].rightCols(3).setZero();
+    g[k].tail(3).setZero();
+  }
   SkewMatrix A_all = SkewMatrix::Zero(dim, dim);
   SkewVector g_all = SkewVector::Zero(dim);
   for (int k = 0; k < groups; ++k) A_all += A[k], g_all += g[k];
+  if (!fit_skew) A_all.bottomRightCorner(3, 3).setIdentity();
   const auto solve = [](SkewMatrix a, const SkewVector& b) -> SkewVector {
     a.diagonal().array() += 1e-12 * (a.diagonal().array().abs() + 1e-12);
     return a.ldlt().solve(-b);
   };
-  SkewJackknife out;
+  GroupJackknife out;
   out.step = solve(A_all, g_all);
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, kMaxGroups> steps(dim, groups);
   for (int k = 0; k < groups; ++k) steps.col(k) = solve(A_all - A[k], g_all - g[k]);
@@ -983,7 +959,7 @@ bool setGeneralSkewFit(FrameMatches& m, double threshold, RefinedRotation* fit) 
 // not: a global shutter's spurious skews reach statistical chi^2 values in the hundreds.
 double rowSkewSignificance(FrameMatches& m, const RefinedRotation& rigid, double threshold) {
   if (!groupInliers(m, rigid, threshold)) return std::numeric_limits<double>::quiet_NaN();
-  const SkewJackknife jack = skewJackknife(m, rigid, threshold, m.scratch.group, kMaxGroups);
+  const GroupJackknife jack = groupJackknife(m, rigid, threshold, m.scratch.group, kMaxGroups, true);
   const Eigen::Vector3d skew = jack.step.tail<3>();
   const Eigen::FullPivLU<Eigen::Matrix3d> lu(jack.spread.bottomRightCorner<3, 3>());
   if (!skew.allFinite() || !lu.isInvertible()) return std::numeric_limits<double>::quiet_NaN();
@@ -1039,88 +1015,18 @@ double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double th
 JackknifeSpread jackknifeSpread(FrameMatches& m, const RefinedRotation& refined, double threshold) {
   JackknifeSpread out;
   FrameMatches::Scratch& s = m.scratch;
-  const Eigen::Matrix3d& R = refined.rotation;
-  const bool pure = refined.pure_rotation || refined.translation.isZero();
-  // A fitted row skew (never exactly zero) takes part as fitRowSkew fitted it.
-  const bool skewed = !refined.row_skew.isZero();
-  const double gate = fullGate(refined, threshold);
   size_t near = 0;
   const size_t count = selectInliers(m, refined, threshold, &near);
-  std::vector<uint32_t>& order = s.order;
   out.near_miss_share = static_cast<double>(near) / static_cast<double>(std::max<size_t>(1, count));
   const int k = jackknifeGroupsPerAxis(count);
   if (k < 2) return out;
-  spatialGroups(m, k, &order, &s.group);
-  const int groups = k * k;
-  if (skewed) {
-    out.covariance = skewJackknife(m, refined, threshold, s.group, groups).spread.topLeftCorner<3, 3>();
-    out.groups = groups;
-    return out;
-  }
-  Eigen::Matrix<double, 6, 6> A_group[kMaxGroups];
-  Eigen::Matrix<double, 6, 1> g_group[kMaxGroups];
-  for (int g = 0; g < groups; ++g) {
-    A_group[g].setZero();
-    g_group[g].setZero();
-  }
-  if (pure) {
-    // The equations of refinePureRotation's covariance, per group: unweighted, at R.
-    std::array<RowSkewEquations, kMaxGroups> equations;
-    rowSkewEquations(m, R, Eigen::Vector3d::Zero(), gate, 0.0, &s.group, equations.data());
-    for (int g = 0; g < groups; ++g) {
-      A_group[g] = equations[g].hessian(R);
-      g_group[g] = equations[g].rhs(R);
-    }
-  } else {
-    // Each group's normal equations from the covariance's own summing pass, on the group alone,
-    // its matches in index order as the covariance pass sums them. The groups' members are listed
-    // in one pass (a counting sort by group) rather than found by a scan of every match per group.
-    std::array<size_t, kMaxGroups + 1> start{};
-    for (uint32_t i : order) ++start[s.group[i] + 1];
-    for (int g = 0; g < groups; ++g) start[g + 1] += start[g];
-    s.members.resize(count);
-    std::array<size_t, kMaxGroups> cursor;
-    std::copy(start.begin(), start.begin() + groups, cursor.begin());
-    for (size_t i = 0; i < m.size(); ++i) {
-      if (s.group[i] >= 0) s.members[cursor[s.group[i]]++] = static_cast<uint32_t>(i);
-    }
-    std::vector<double>* const to[6] = {&s.gpx, &s.gpy, &s.gpz, &s.gcx, &s.gcy, &s.gcz};
-    for (int g = 0; g < groups; ++g) {
-      s.gathered = gatherListed(m, s.members.data() + start[g], start[g + 1] - start[g], to);
-      NormalEquations ne;
-      accumulateEpipolar(gatheredInScratch(m), R, refined.translation, threshold, Weighting::kInliers, &ne);
-      A_group[g].topLeftCorner<5, 5>() = ne.A;
-      g_group[g].head<5>() = ne.g;
-    }
-  }
-  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-  for (int g = 0; g < groups; ++g) {
-    A += A_group[g];
-    b += g_group[g];
-  }
-  // The parameters: the rotation, then the translation's two.
-  const int parameters = pure ? 3 : 5, fixed = 6 - parameters;
-  // Each leave-one-out solution is one Gauss-Newton step on the rest from the full solution; the
-  // full solution's own step (about zero at convergence) cancels in the spread about the mean.
-  Eigen::Matrix<double, 3, kMaxGroups> steps;
-  for (int g = 0; g < groups; ++g) {
-    Eigen::Matrix<double, 6, 6> rest = A - A_group[g];
-    Eigen::Matrix<double, 6, 1> rhs = -(b - g_group[g]);
-    rest.rightCols(fixed).setZero();
-    rest.bottomRows(fixed).setZero();
-    rest.bottomRightCorner(fixed, fixed).setIdentity();
-    rhs.tail(fixed).setZero();
-    rest.diagonal().array() += 1e-12 * (rest.diagonal().array().abs() + 1e-12);
-    const Eigen::Matrix<double, 6, 1> step = rest.ldlt().solve(rhs);
-    if (!step.allFinite()) return out;
-    steps.col(g) = step.head<3>();
-  }
-  const Eigen::Vector3d mean = steps.leftCols(groups).rowwise().mean();
-  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
-  for (int g = 0; g < groups; ++g) spread.noalias() += (steps.col(g) - mean) * (steps.col(g) - mean).transpose();
-  out.covariance = spread * (static_cast<double>(groups - 1) / groups);
-  out.groups = groups;
+  spatialGroups(m, k, &s.order, &s.group);
+  // A fitted row skew (never exactly zero) takes part as fitRowSkew fitted it.
+  const bool skewed = !refined.row_skew.isZero();
+  const GroupJackknife jack = groupJackknife(m, refined, threshold, s.group, k * k, skewed);
+  if (!jack.spread.allFinite()) return out;
+  out.covariance = jack.spread.topLeftCorner<3, 3>();
+  out.groups = k * k;
   return out;
 }
 

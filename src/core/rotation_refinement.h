@@ -58,7 +58,6 @@ class FrameMatches {
     /// The jackknife's inliers, ordered into spatial groups, and each match's group (-1: none).
     std::vector<uint32_t> order;
     std::vector<int> group;
-    std::vector<uint32_t> members;  ///< the jackknife's inliers by group, each group in index order
     std::vector<uint32_t> all_order;  ///< the refit jackknife's matches, ordered into spatial groups
     std::vector<int> all_group;       ///< the refit jackknife's group of each match
     /// The inliers on the previous frame's normalised image plane, and their convex hull
