@@ -640,7 +640,7 @@ TEST(CandidateRefinement, ValleySearchLeavesAWrongBasinAlongTheValley) {
   EXPECT_FALSE(moved);
 }
 
-TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenAGeneralWinnerExplainsTooFew) {
+TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenAGeneralWinnerExplainsTooFewOrIsLoose) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.0, 0.1 * kDeg);
   const Vector3d t(0.0, 0.2, 1.0);
   const Scene s = makeScene(R, t, 500, 0.5e-3, 0.1, 2, 10, 9);
@@ -659,6 +659,36 @@ TEST(CandidateRefinement, RestartsFindTheTranslationOnlyWhenAGeneralWinnerExplai
   EXPECT_EQ(choice.contenders.size(), 13u);  // one start, 13 directions
   EXPECT_GT(std::abs(choice.winner.translation.dot(t.normalized())), std::cos(2.0 * kDeg));
   EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.05 * kDeg);
+  // Explaining 90 % with a translation its fit leaves loose: restarts.
+  choice = vg::RefinementChoice();
+  choice.winner = refinedAt(R, Vector3d(1, 0, 0), 450, 1e9);
+  choice.winner.translation_sigma = 2.0 * vg::kWeakTranslationSigmaDeg * kDeg;
+  EXPECT_TRUE(vg::restartFromTranslations(matches, threshold, 10, &choice));
+  EXPECT_EQ(choice.contenders.size(), 13u);
+  EXPECT_GT(std::abs(choice.winner.translation.dot(t.normalized())), std::cos(2.0 * kDeg));
+}
+
+// The translation's standard deviation that decides the restarts: a camera moved sideways by two
+// centimetres among things 2-10 m away leaves its direction loose (and the rotation with it, along
+// the valley), a metre fixes it.
+TEST(CandidateRefinement, TranslationSigmaIsLooseOnlyForASmallBaseline) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.5 * kDeg, 0.2 * kDeg, 0.0);
+  const double threshold = 0.1 * kDeg;
+  double sigma_deg[2] = {0.0, 0.0};
+  int k = 0;
+  for (const double baseline : {0.02, 1.0}) {
+    const Vector3d t = baseline * Vector3d(1.0, 0.1, 0.2).normalized();
+    const Scene s = makeScene(R, t, 400, 0.5e-3, 0.1, 2, 10, 21);
+    vg::FrameMatches matches;
+    matches.assign(s.previous, s.current);
+    const vg::RefinedRotation fit = vg::refineMotion(matches, R, t.normalized(), threshold, 10);
+    ASSERT_FALSE(fit.pure_rotation);
+    sigma_deg[k++] = fit.translation_sigma / kDeg;
+  }
+  std::printf("translation sigma: %.3f deg at 2 cm, %.3f deg at 1 m\n", sigma_deg[0], sigma_deg[1]);
+  EXPECT_GT(sigma_deg[0], vg::kWeakTranslationSigmaDeg);
+  EXPECT_LT(sigma_deg[1], vg::kWeakTranslationSigmaDeg);
+  EXPECT_GT(sigma_deg[1], 0.0);
 }
 
 // A translation along a body diagonal of the camera frame lies 35 deg from every axis and face

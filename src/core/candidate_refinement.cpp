@@ -153,13 +153,23 @@ class ValleySteps {
   bool stepped_ = false;
 };
 
-// Where the restarts and the descent run: a general-motion winner explaining fewer matches than
+// Where the descent runs, and the restarts: a general-motion winner explaining fewer matches than
 // they accept. A pure rotation's model choice found no translation worth its two parameters, and
 // more tries at one only raise the odds that a translation chosen among wrong matches clears the
 // margin (a dim, blurred room's pure frame of 100 matches: 69 inliers against a restart's 82).
 bool generalWinnerExplainsTooFew(const FrameMatches& matches, const RefinedRotation& winner) {
   if (winner.pure_rotation || winner.translation.isZero()) return false;
   return winner.inliers < kRestartInlierFraction * static_cast<double>(matches.size());
+}
+
+// Where the restarts also run: a general-motion winner whose translation its own fit leaves loose
+// (kWeakTranslationSigmaDeg). A camera moved by centimetres among things metres away has several
+// basins of the translation, each explaining nearly every match (a dim room: 92-95 % each, the one
+// nearest the truth 17 % cheaper than the one every candidate reached, 0.3 deg off), which the
+// share of matches explained never tells apart.
+bool generalWinnerTranslationIsWeak(const RefinedRotation& winner) {
+  if (winner.pure_rotation || winner.translation.isZero()) return false;
+  return winner.translation_sigma > kWeakTranslationSigmaDeg * kDeg;
 }
 
 // The best of the six steps of `step_deg` about the camera axes from (*rotation, *translation),
@@ -269,10 +279,11 @@ bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_v
 // wrong matches near structure the winner can also be a wrong basin a degree or two from the
 // right rotation, too far for any translation to bring the right matches within the gate, while a
 // contender sits in the right basin and lost only through its translation; so the contenders'
-// rotations are starts too. Frames whose matches are mostly explained never run this, nor frames
-// that a pure rotation won.
+// rotations are starts too. Frames whose matches are mostly explained by a well-determined
+// translation never run this, nor frames that a pure rotation won.
 bool restartFromTranslations(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice) {
-  if (!generalWinnerExplainsTooFew(matches, choice->winner)) return false;
+  if (!generalWinnerExplainsTooFew(matches, choice->winner) && !generalWinnerTranslationIsWeak(choice->winner))
+    return false;
   std::array<Eigen::Matrix3d, 1 + kRestartContenders> starts;
   starts[0] = choice->winner.rotation;
   size_t start_count = 1;

@@ -235,15 +235,23 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
 }
 
 // The covariance sigma^2 A^-1 of a fit's rotation (A's first three parameters; the others, such as
-// a translation or a skew, marginalised out), sigma^2 = cost / dof. False, the covariance left as it
-// was, where A is singular.
+// a translation or a skew, marginalised out), sigma^2 = cost / dof, and of a general motion's
+// translation (the next two parameters) the larger standard deviation. False, the covariance left
+// as it was, where A is singular.
 template <typename Matrix>
 bool setFitCovariance(const Matrix& A, double cost, int dof, RefinedRotation* out) {
   const double sigma2 = cost / std::max(1, dof);
   out->residual_sigma = std::sqrt(sigma2);
   const Eigen::FullPivLU<Matrix> lu(A);
   if (!lu.isInvertible()) return false;
-  out->covariance = sigma2 * lu.inverse().template topLeftCorner<3, 3>();
+  const Matrix covariance = sigma2 * lu.inverse();
+  out->covariance = covariance.template topLeftCorner<3, 3>();
+  if constexpr (Matrix::RowsAtCompileTime == Eigen::Dynamic || Matrix::RowsAtCompileTime >= 5) {
+    if (A.rows() >= 5) {
+      const Eigen::Matrix2d translation = covariance.template block<2, 2>(3, 3);
+      out->translation_sigma = std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(translation).eigenvalues()(1));
+    }
+  }
   return true;
 }
 

@@ -119,6 +119,10 @@ struct RefinedRotation {
   /// each other match the squared gate (MSAC's score, Torr and Zisserman). Comparable between
   /// refinements of one frame under the same model.
   double truncated_cost = 0.0;
+  /// How closely the matches fix a general motion's translation direction [rad]: the larger
+  /// standard deviation of its two tangent-plane parameters under the fit's statistical covariance
+  /// (sigma^2 (J^T J)^-1, the rotation marginalised out). Zero for a pure rotation.
+  double translation_sigma = 0.0;
 };
 
 /// True when refinement `a` explains the matches better than `b`: a lower truncated cost under the
