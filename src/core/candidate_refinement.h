@@ -3,8 +3,9 @@
 // motion), then the searches for a better basin that the candidates may all have missed: from the
 // previous frame's motion, along the rotation/translation valley of a close scene, from other
 // translation directions when the winner leaves many matches unexplained or its translation
-// loose, and down the truncated cost when it leaves many unexplained. Private to src/core; conventions as in
-// rotation_estimator.h (b_prev ~ R b_cur, translation unit in the previous camera frame).
+// loose, and down the truncated cost when it leaves many unexplained. Private to src/core;
+// conventions as in rotation_estimator.h (b_prev ~ R b_cur, translation unit in the previous
+// camera frame).
 #pragma once
 
 #include <vector>
