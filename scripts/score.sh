@@ -4,7 +4,8 @@
 # their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches, both at
 # once, frames downscaled to a quarter); and rendered scenes (near structure, over four textures; a
 # dim blurred room, a blurred 1280 x 720 room, a hand-held room, the same through a phone-like
-# rolling shutter, also at half the frame rate, drone_near through it, and the blurred 1280 x 720
+# rolling shutter, also at half the frame rate, the hand-held room moved by centimetres through a
+# global and a rolling shutter, drone_near through the shutter, and the blurred 1280 x 720
 # room through a rolling shutter with the hand moving the camera by centimetres). Each case runs with
 # estimator seeds 1-3; the per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
 # last line of JSON (also out/score/score.json).
@@ -115,6 +116,8 @@ render dim_blur15_720p --preset dim --blur 15 --jpeg 60 --width 1280 --height 72
 render handheld --preset handheld
 render handheld_rs --preset handheld_rs
 render handheld_rs_15hz --preset handheld_rs --rate 15
+render handheld_5cm --preset handheld --hand-translation-cm 5
+render handheld_rs_5cm --preset handheld_rs --hand-translation-cm 5
 render drone_near_rs --preset drone_near --rolling-shutter-ms 28
 render dim_hand_rs --preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900 --rolling-shutter-ms 33 \
   --hand-translation-cm 6
@@ -169,6 +172,10 @@ run_case handheld_rs "${OUT}/rendered/handheld_rs" \
   "rendered hand-held room through a rolling shutter (28 ms read-out; stamps and poses the middle row's), 30 Hz"
 run_case handheld_rs_15hz "${OUT}/rendered/handheld_rs_15hz" \
   "the same hand-held motion through the same rolling shutter at 15 Hz (twice the motion a pair)"
+run_case handheld_5cm "${OUT}/rendered/handheld_5cm" \
+  "rendered hand-held room, the hand moving the camera by +-5 cm (a phone or camera carried by hand), 30 Hz"
+run_case handheld_rs_5cm "${OUT}/rendered/handheld_rs_5cm" \
+  "the same, the hand moving the camera by +-5 cm, through the 28 ms rolling shutter"
 run_case drone_near_rs "${OUT}/rendered/drone_near_rs" \
   "rendered drone_near through a rolling shutter (28 ms read-out), 20 Hz: translation near structure"
 run_case dim_hand_rs "${OUT}/rendered/dim_hand_rs" \
