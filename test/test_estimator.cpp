@@ -617,6 +617,31 @@ TEST(CandidateRefinement, ChallengeReplacesTheWinnerOnlyWhenItExplainsBetter) {
   EXPECT_EQ(choice.contenders.size(), 2u);
 }
 
+// The model choice between a pure rotation and a general motion, as explainsBetter makes it.
+TEST(ModelChoice, ATranslationWinsByAMarginOrByMostOfWhatTheRotationLeaves) {
+  const auto fit = [](int inliers, bool pure, int matches) {
+    vg::RefinedRotation r;
+    r.inliers = inliers;
+    r.pure_rotation = pure;
+    r.matches = matches;
+    if (!pure) r.translation = Vector3d::UnitX();
+    return r;
+  };
+  // The margin: 15 % of the general motion's inliers more, however many the rotation leaves.
+  EXPECT_TRUE(vg::explainsBetter(fit(600, false, 1000), fit(500, true, 1000)));
+  EXPECT_TRUE(vg::explainsBetter(fit(500, true, 1000), fit(560, false, 1000)));
+  // A room moved by centimetres: 171 of the 188 matches the rotation leaves, 12 % of the inliers.
+  EXPECT_TRUE(vg::explainsBetter(fit(1383, false, 1400), fit(1212, true, 1400)));
+  EXPECT_FALSE(vg::explainsBetter(fit(1212, true, 1400), fit(1383, false, 1400)));
+  // A room held still: the translation's two parameters absorb 14 of the rotation's 23 noise tails.
+  EXPECT_TRUE(vg::explainsBetter(fit(1477, true, 1500), fit(1491, false, 1500)));
+  // More than half of 100 left, by three binomial standard deviations (5 matches) or more.
+  EXPECT_TRUE(vg::explainsBetter(fit(1966, false, 2000), fit(1900, true, 2000)));
+  EXPECT_TRUE(vg::explainsBetter(fit(1900, true, 2000), fit(1964, false, 2000)));
+  // Without the frame's match count only the margin decides.
+  EXPECT_TRUE(vg::explainsBetter(fit(1212, true, 0), fit(1383, false, 0)));
+}
+
 TEST(CandidateRefinement, ValleySearchLeavesAWrongBasinAlongTheValley) {
   // A close scene with a sideways translation: a rotation about view x t with the same translation
   // moves the image almost alike, the valley the search walks along.

@@ -123,14 +123,16 @@ struct RefinedRotation {
   /// standard deviation of its two tangent-plane parameters under the fit's statistical covariance
   /// (sigma^2 (J^T J)^-1, the rotation marginalised out). Zero for a pure rotation.
   double translation_sigma = 0.0;
+  int matches = 0;  ///< the frame's matches, those the fit chose its inliers among
 };
 
 /// True when refinement `a` explains the matches better than `b`: a lower truncated cost under the
 /// same model (a count of inliers saturates when the gate is wide against the residuals, as it is
 /// along the rotation/translation valley of a close scene, where the wrong rotation and the right
-/// one both keep nearly every match but not equally tightly); a general motion (rotation + translation, two more degrees of freedom) must explain
-/// clearly more than a pure rotation -- the margin of the model selection in refineRotation -- and a
-/// pure rotation wins over a general motion unless that margin is met.
+/// one both keep nearly every match but not equally tightly); between the models, the model choice
+/// of refineRotation: a general motion (two more degrees of freedom) wins when its translation
+/// explains clearly more matches than the pure rotation does, 15 % of its inliers more, or
+/// significantly more than half of the matches the pure rotation leaves unexplained.
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 
 /// How strongly a rigid refinement's matches call for a row skew (RefinedRotation::row_skew):
