@@ -635,7 +635,8 @@ TEST(ModelChoice, ATranslationWinsByAMarginOrByMostOfWhatTheRotationLeaves) {
   EXPECT_FALSE(vg::explainsBetter(fit(1212, true, 1400), fit(1383, false, 1400)));
   // A room held still: the translation's two parameters absorb 14 of the rotation's 23 noise tails.
   EXPECT_TRUE(vg::explainsBetter(fit(1477, true, 1500), fit(1491, false, 1500)));
-  // More than half of 100 left, by three binomial standard deviations (5 matches) or more.
+  // Of the 100 the rotation leaves, over half by more than three binomial standard deviations (3 x 5):
+  // 66 wins, 64 does not.
   EXPECT_TRUE(vg::explainsBetter(fit(1966, false, 2000), fit(1900, true, 2000)));
   EXPECT_TRUE(vg::explainsBetter(fit(1900, true, 2000), fit(1964, false, 2000)));
   // Without the frame's match count only the margin decides.
