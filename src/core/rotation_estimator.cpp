@@ -113,24 +113,14 @@ void RotationResult::invalidate(FrameStatus why, const std::string& details) {
   covariance.setIdentity();
 }
 
+// Indexed by VotePart (internal linkage: constexpr).
+constexpr std::array<const char*, static_cast<size_t>(VotePart::kCount)> kVotePartNames = {
+    "wide_vote", "prior_candidate", "identity_candidate", "refine_contenders", "previous_motion",
+    "valley", "restarts", "descent", "refit_jackknife", "contender_spread", "row_skew", "translation_spread",
+    "contender_mean"};
+
 const char* votePartName(VotePart part) {
-  switch (part) {
-    case VotePart::kWideVote: return "wide_vote";
-    case VotePart::kPriorCandidate: return "prior_candidate";
-    case VotePart::kIdentityCandidate: return "identity_candidate";
-    case VotePart::kRefineContenders: return "refine_contenders";
-    case VotePart::kPreviousMotion: return "previous_motion";
-    case VotePart::kValley: return "valley";
-    case VotePart::kRestarts: return "restarts";
-    case VotePart::kDescent: return "descent";
-    case VotePart::kRefitJackknife: return "refit_jackknife";
-    case VotePart::kContenderSpread: return "contender_spread";
-    case VotePart::kRowSkew: return "row_skew";
-    case VotePart::kTranslationSpread: return "translation_spread";
-    case VotePart::kContenderMean: return "contender_mean";
-    case VotePart::kCount: break;
-  }
-  return "";
+  return part < VotePart::kCount ? kVotePartNames[static_cast<size_t>(part)] : "";
 }
 
 // The value among `values` whose name (nameOf) is `name`.
@@ -146,7 +136,7 @@ bool parseNamed(const std::string& name, const Values& values, NameOf nameOf, En
 }
 
 bool parseVotePart(const std::string& name, VotePart* part) {
-  std::array<VotePart, static_cast<size_t>(VotePart::kCount)> parts;
+  std::array<VotePart, kVotePartNames.size()> parts;
   for (size_t k = 0; k < parts.size(); ++k) parts[k] = static_cast<VotePart>(k);
   return parseNamed(name, parts, votePartName, part);
 }

@@ -550,42 +550,30 @@ Eigen::Vector3d refitTranslation(FrameMatches& m, const Eigen::Vector3d& transla
 }  // namespace
 
 void FrameMatches::assign(const std::vector<Eigen::Vector3d>& previous, const std::vector<Eigen::Vector3d>& current) {
-  const size_t n = previous.size();
-  for (std::vector<double>* v : {&px, &py, &pz, &cx, &cy, &cz}) v->resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    px[i] = previous[i].x();
-    py[i] = previous[i].y();
-    pz[i] = previous[i].z();
-    cx[i] = current[i].x();
-    cy[i] = current[i].y();
-    cz[i] = current[i].z();
-  }
-  finishAssign();
+  clear();
+  for (size_t i = 0; i < previous.size(); ++i) append(previous[i], current[i]);
 }
 
 void FrameMatches::assignWithout(const FrameMatches& from, const std::vector<int>& group, int left_out) {
-  const size_t n = from.size();
-  size_t kept = 0;
-  for (size_t i = 0; i < n; ++i) kept += group[i] != left_out;
-  for (std::vector<double>* v : {&px, &py, &pz, &cx, &cy, &cz}) v->resize(kept);
-  size_t k = 0;
-  for (size_t i = 0; i < n; ++i) {
-    if (group[i] == left_out) continue;
-    px[k] = from.px[i];
-    py[k] = from.py[i];
-    pz[k] = from.pz[i];
-    cx[k] = from.cx[i];
-    cy[k] = from.cy[i];
-    cz[k] = from.cz[i];
-    ++k;
-  }
-  finishAssign();
+  clear();
+  for (size_t i = 0; i < from.size(); ++i)
+    if (group[i] != left_out) append(from.previous(i), from.current(i));
 }
 
-void FrameMatches::finishAssign() {
+void FrameMatches::clear() {
+  for (std::vector<double>* v : {&px, &py, &pz, &cx, &cy, &cz}) v->clear();
   all_gathered = false;
   scratch.rotated = false;
   scratch.counting = false;
+}
+
+void FrameMatches::append(const Eigen::Vector3d& previous, const Eigen::Vector3d& current) {
+  px.push_back(previous.x());
+  py.push_back(previous.y());
+  pz.push_back(previous.z());
+  cx.push_back(current.x());
+  cy.push_back(current.y());
+  cz.push_back(current.z());
 }
 
 VerifiedRotation verifyRotation(FrameMatches& m, const Eigen::Matrix3d& rotation, double threshold,

@@ -67,8 +67,9 @@ class FrameMatches {
   Scratch scratch;
 
  private:
-  /// Resets what was derived from the previous matches.
-  void finishAssign();
+  /// Empties the matches and resets what was derived from them.
+  void clear();
+  void append(const Eigen::Vector3d& previous, const Eigen::Vector3d& current);
 };
 
 /// A candidate rotation checked against every match.
