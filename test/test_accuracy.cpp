@@ -521,8 +521,11 @@ TEST_F(Rendered, NearStructureVoteBeatsFivePoint) {
 // the valley search must then find the right basin from whichever wrong one it starts in. Seed 2
 // once started frame 30 in a basin 0.4 deg off with a covariance of 0.05 deg: its valley steps were
 // costed at sampled translations, against the winner at its refined one, so none looked better.
+// Seed 6 once took a forward-moving winner at frame 30, 0.35 deg off under NEES 104: its
+// translation's standard deviation (0.47 deg) lay under the restarts' bound of then (0.5 deg), and
+// no search reached the lateral motion of the frames before it.
 TEST_F(Rendered, NearStructureHoldsForEveryDraw) {
-  for (const int seed : {2, 3, 4, 5}) {
+  for (const int seed : {2, 3, 4, 5, 6}) {
     const Figures f = evaluate(root_ + "/drone_near", "vote", "--backend cpu --seed " + std::to_string(seed));
     EXPECT_EQ(f.at("vote.invalid"), 0) << "seed " << seed;
     EXPECT_LE(f.at("vote.rot_max_deg"), 0.1) << "seed " << seed;
