@@ -113,7 +113,7 @@ void RotationResult::invalidate(FrameStatus why, const std::string& details) {
   covariance.setIdentity();
 }
 
-// Indexed by VotePart (internal linkage: constexpr).
+// votePartName's names, indexed by VotePart.
 constexpr std::array<const char*, static_cast<size_t>(VotePart::kCount)> kVotePartNames = {
     "wide_vote", "prior_candidate", "identity_candidate", "refine_contenders", "previous_motion",
     "valley", "restarts", "descent", "refit_jackknife", "contender_spread", "row_skew", "translation_spread",

@@ -69,6 +69,7 @@ class FrameMatches {
  private:
   /// Empties the matches and resets what was derived from them.
   void clear();
+  /// Adds one match: its unit bearings in the previous and the current frame.
   void append(const Eigen::Vector3d& previous, const Eigen::Vector3d& current);
 };
 
