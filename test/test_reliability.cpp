@@ -199,6 +199,18 @@ TEST_F(EvaluateBadInput, GoodFolderPasses) {
   EXPECT_EQ(vg::test::jsonNumber(out, "invalid"), 0.0) << out;
 }
 
+TEST_F(EvaluateBadInput, MovingRegionIsReportedAndItsAngleNeedsIt) {
+  int status = -1;
+  std::string out = evaluate(root_ + "/good --moving-region 0.3 --moving-deg 1.5", &status);
+  EXPECT_EQ(status, 0) << out;
+  EXPECT_EQ(vg::test::jsonNumber(out, "moving_region"), 0.3) << out;
+  EXPECT_EQ(vg::test::jsonNumber(out, "moving_deg"), 1.5) << out;
+  EXPECT_TRUE(contains(out, "30 % of the matches moving by 1.50 deg")) << out;
+  out = evaluate(root_ + "/good --moving-deg 1.5", &status);
+  EXPECT_EQ(status, 2) << out;
+  EXPECT_TRUE(contains(out, "--moving-deg needs --moving-region")) << out;
+}
+
 TEST_F(EvaluateBadInput, MicrosecondStepsMakeTheFolderUnusable) {
   const std::string dir = copy("us_steps");
   write(dir + "/times.txt", "0.0\n0.000001\n0.000002\n0.000003\n0.000004\n0.000005\n");

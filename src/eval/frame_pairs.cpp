@@ -89,6 +89,23 @@ void injectOutliers(double fraction, uint64_t seed, double angle_per_px, FramePa
 
 }  // namespace
 
+void moveRegion(double fraction, double angle_deg, FramePair* p) {
+  const size_t n = p->previous.size();
+  const size_t count = static_cast<size_t>(std::llround(fraction * static_cast<double>(n)));
+  if (count == 0) return;
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  // Ties broken by index, so that the region is the same with every standard library.
+  const auto rightward = [&](size_t a, size_t b) {
+    const double xa = std::atan2(p->previous[a].x(), p->previous[a].z());
+    const double xb = std::atan2(p->previous[b].x(), p->previous[b].z());
+    return xa != xb ? xa > xb : a < b;
+  };
+  std::sort(order.begin(), order.end(), rightward);
+  const Eigen::Matrix3d turn = so3Exp(angle_deg * kDegToRad * Eigen::Vector3d::UnitY());
+  for (size_t c = 0; c < count; ++c) p->current[order[c]] = turn * p->current[order[c]];
+}
+
 void subsampleMatches(int max_matches, uint64_t seed, FramePair* p) {
   const size_t n = p->previous.size();
   if (max_matches <= 0 || n <= static_cast<size_t>(max_matches)) return;
@@ -145,8 +162,8 @@ FrameResult comparisonFrame(ComparisonFrontEnd* other, const Sequence& seq, size
 }
 
 /// The pair (previous_index, k) from the front end's result `r` (its bearings are moved out),
-/// with its truth, subsampled and with outliers injected as the options say. `unusable`: the
-/// image left the previous one in place (frozen or textureless).
+/// with its truth, subsampled, with outliers injected and a region moved as the options say.
+/// `unusable`: the image left the previous one in place (frozen or textureless).
 FramePair makePair(const Sequence& seq, size_t previous_index, size_t k, bool unusable, const FramePairOptions& o,
                    FrameResult* r) {
   FramePair p;
@@ -166,6 +183,7 @@ FramePair makePair(const Sequence& seq, size_t previous_index, size_t k, bool un
   fillPairTruth(seq, &p);
   subsampleMatches(o.max_matches, o.seed, &p);
   injectOutliers(o.outliers, o.seed, 1.0 / seq.camera.fx(), &p);
+  moveRegion(o.moving_region, o.moving_deg, &p);
   return p;
 }
 

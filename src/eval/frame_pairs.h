@@ -49,6 +49,10 @@ struct FramePairOptions {
   int stride = 1;                 ///< pair image k with image k - stride
   int max_matches = 0;            ///< a deterministic random subset of at most this many (0: all)
   double outliers = 0.0;          ///< fraction of matches replaced by wrong pairings
+  /// Fraction of the matches that move as one independent object (moveRegion; 0: none), and that
+  /// object's own rotation a pair [deg].
+  double moving_region = 0.0;
+  double moving_deg = 0.5;
   uint64_t seed = 1;              ///< seed of the subset and the outliers
   std::string front_end = "native";  ///< native, or a comparison front end (orb, klt)
   /// Applied to every image as it is read (after the sequence's own downscaling, image_scale),
@@ -70,6 +74,12 @@ std::vector<FramePair> collectFramePairs(const Sequence& sequence, const VisualG
 /// composed frame-to-frame rotations between its images and, for a gyro or EuRoC poses, the
 /// dt-weighted mean rate.
 void fillPairTruth(const Sequence& sequence, FramePair* pair);
+
+/// Moves the fraction `fraction` of the matches as one independently moving object would: those
+/// furthest right in the previous image (largest atan2(x, z), optical frame) get their current bearings
+/// turned by `angle_deg` about the camera's y axis, a sideways motion in the image of their own
+/// beside the camera's. Deterministic; the other matches are untouched.
+void moveRegion(double fraction, double angle_deg, FramePair* pair);
 
 /// Keeps a deterministic random subset of at most max_matches matches.
 void subsampleMatches(int max_matches, uint64_t seed, FramePair* pair);

@@ -169,6 +169,8 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   out << "   frames " << a.frames << ", invalid " << a.invalid
       << " (invalid frames count as identity rotation in the errors)";
   if (run.outliers > 0) out << ", injected outliers " << fmt(100.0 * run.outliers, 0) << " %";
+  if (run.moving_region > 0)
+    out << ", " << fmt(100.0 * run.moving_region, 0) << " % of the matches moving by " << fmt(run.moving_deg, 2) << " deg";
   if (run.stride > 1) out << ", stride " << run.stride;
   if (run.scale != 1.0) out << ", images downscaled by " << fmt(run.scale, 3);
   if (run.degradation.any()) {
@@ -247,6 +249,8 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("layout", run.layout)
       .add("hypotheses", isOwnMethod(s.method) ? run.hypotheses : 0)
       .add("outliers", run.outliers)
+      .add("moving_region", run.moving_region)
+      .add("moving_deg", run.moving_deg)
       .add("stride", run.stride)
       .add("contrast", run.degradation.contrast)
       .add("noise", run.degradation.noise_sigma)

@@ -81,6 +81,8 @@ ImuAlignment alignGyroTruth(const Sequence& sequence, size_t reference, std::vec
 struct RunDescription {
   std::string dataset, layout, truth;  ///< the sequence's name, layout and reference kind
   double outliers = 0.0;               ///< injected outlier fraction
+  double moving_region = 0.0;          ///< fraction of the matches moved as one object (moveRegion)
+  double moving_deg = 0.0;             ///< that object's own rotation a pair [deg]
   ImageDegradation degradation;        ///< applied to the images before the front end
   double scale = 1.0;                  ///< images downscaled by this factor as read (Sequence::image_scale)
   int stride = 1;

@@ -42,6 +42,8 @@ const char* const kUsage =
     "  --seed S               estimator seed (frame f draws with S + f)\n"
     "  --backend B            auto, cpu or cuda (vote, paper; default auto)\n"
     "  --outliers F           replace the fraction F of the matches by random wrong pairings\n"
+    "  --moving-region F      move the fraction F of the matches (those furthest right) as one\n"
+    "                         independent object, turned by --moving-deg D a pair (default 0.5)\n"
     "  --max-matches N        use at most N matches per pair (a deterministic random subset)\n"
     "  --contrast F           degrade every image as it is read: grey levels scaled about the\n"
     "                         image mean by F (dimmer footage: F < 1), then\n"
@@ -90,6 +92,7 @@ struct Options {
 Options parseOptions(int argc, char** argv) {
   Options o;
   bool have_folder = false;
+  bool moving_deg_given = false;
   for (cli::Arguments args(argc, argv); args.next();) {
     if (args.is("-h") || args.is("--help")) {
       std::cout << kUsage;
@@ -114,6 +117,11 @@ Options parseOptions(int argc, char** argv) {
         throw UsageError("--backend must be auto, cpu or cuda, not '" + o.backend + "'");
     } else if (args.is("--outliers")) {
       o.pairs.outliers = args.doubleValue(0.0, 1.0);
+    } else if (args.is("--moving-region")) {
+      o.pairs.moving_region = args.doubleValue(0.0, 1.0);
+    } else if (args.is("--moving-deg")) {
+      o.pairs.moving_deg = args.doubleValue(-90.0, 90.0);
+      moving_deg_given = true;
     } else if (args.is("--contrast")) {
       o.pairs.degradation.contrast = args.doubleValue(1e-3, 100.0);
     } else if (args.is("--noise")) {
@@ -179,6 +187,7 @@ Options parseOptions(int argc, char** argv) {
     }
   }
   if (!have_folder) throw UsageError("no sequence folder given");
+  if (moving_deg_given && !(o.pairs.moving_region > 0.0)) throw UsageError("--moving-deg needs --moving-region");
   for (const auto& m : o.methods) {
     const std::string problem = eval::methodProblem(m);
     if (!problem.empty()) throw UsageError(problem);
@@ -285,6 +294,8 @@ int run(int argc, char** argv) {
   description.layout = seq.layout;
   description.truth = seq.truth;
   description.outliers = o.pairs.outliers;
+  description.moving_region = o.pairs.moving_region;
+  description.moving_deg = o.pairs.moving_region > 0.0 ? o.pairs.moving_deg : 0.0;
   description.degradation = o.pairs.degradation;
   description.scale = seq.image_scale;
   description.stride = o.pairs.stride;
