@@ -158,6 +158,15 @@ for name in kitti_turn euroc_mh01_shake; do
     --scale 0.25
 done
 
+# 5c. An object moving through one side of the view, its matches turned by its own motion
+# (evaluate --moving-region): a vehicle passing a drive; a large region moving slowly near
+# structure (water, a crowd), which a close scene's parallax can explain as well.
+run_case kitti_turn_moving0.3 "${DATA_DIR}/kitti_turn" \
+  "kitti_turn, the rightmost 30 % of the matches moving by a further 2 deg a pair" --moving-region 0.3 --moving-deg 2
+run_case mh01_moving0.3 "${shake}" \
+  "euroc_mh01_shake, the rightmost 30 % of the matches moving by a further 0.5 deg a pair" \
+  --moving-region 0.3 --moving-deg 0.5
+
 # 6. Rendered scenes (exact truth).
 run_case drone_near "${OUT}/rendered/drone_near" "rendered drone_near: shaken 1-2 m from boxes, 20 Hz"
 for texture in 4 12 16; do
@@ -168,6 +177,9 @@ run_case dim_blur3_jpeg75 "${OUT}/rendered/dim_blur3_jpeg75" "rendered dim room,
 run_case dim_blur15_720p "${OUT}/rendered/dim_blur15_720p" \
   "rendered dim room at 1280 x 720 (f = 900 px), 15 px motion blur, JPEG 60, 30 Hz"
 run_case handheld "${OUT}/rendered/handheld" "rendered hand-held room, 30 Hz"
+run_case handheld_moving0.45 "${OUT}/rendered/handheld" \
+  "rendered hand-held room, the rightmost 45 % of the matches moving by a further 2 deg a pair (a person walking past)" \
+  --moving-region 0.45 --moving-deg 2
 run_case handheld_rs "${OUT}/rendered/handheld_rs" \
   "rendered hand-held room through a rolling shutter (28 ms read-out; stamps and poses the middle row's), 30 Hz"
 run_case handheld_rs_15hz "${OUT}/rendered/handheld_rs_15hz" \
