@@ -909,10 +909,43 @@ size_t selectInliers(FrameMatches& m, const RefinedRotation& fit, double thresho
   return count;
 }
 
-// The group jackknife of a fit over `groups` spatial groups (group[i], -1: none) in the row skew's
-// model (pure: rotation, skew; general: rotation, translation, skew), the skew held at the fit's
-// unless `fit_skew`, from each group's unweighted inliers at the full gate: the Gauss-Newton step of
-// all the groups from the fit, and the covariance of its parameters as the spread of the
+// Each of `groups` spatial groups' (group[i], -1: none) normal equations in the row skew's model
+// (pure: rotation, skew; general: rotation, translation, skew) at the fit, from its unweighted
+// inliers at the full gate; the skew held at the fit's (its three parameters, the last, left out)
+// unless `fit_skew`.
+struct GroupSystems {
+  std::array<SkewMatrix, kMaxGroups> A;
+  std::array<SkewVector, kMaxGroups> g;
+  int dim = 0;
+  bool fit_skew = true;
+};
+
+GroupSystems groupSystems(const FrameMatches& m, const RefinedRotation& fit, double threshold,
+                          const std::vector<int>& group, int groups, bool fit_skew) {
+  GroupSystems out;
+  const bool pure = fit.pure_rotation || fit.translation.isZero();
+  out.dim = pure ? 6 : 8;
+  out.fit_skew = fit_skew;
+  if (pure) {
+    std::array<RowSkewEquations, kMaxGroups> by_group;
+    rowSkewEquations(m, fit.rotation, fit.row_skew, kRotationGateScale * threshold, 0.0, &group, by_group.data());
+    for (int k = 0; k < groups; ++k) out.A[k] = by_group[k].hessian(fit.rotation), out.g[k] = by_group[k].rhs(fit.rotation);
+  } else {
+    std::array<SkewedEpipolarEquations, kMaxGroups> by_group;
+    skewedEpipolarEquations(m, fit.rotation, fit.translation, fit.row_skew, threshold, Weighting::kInliers, &group,
+                            by_group.data());
+    for (int k = 0; k < groups; ++k) std::tie(out.A[k], out.g[k]) = by_group[k].system(fit.rotation);
+  }
+  for (int k = 0; k < groups && !fit_skew; ++k) {
+    out.A[k].bottomRows(3).setZero();
+    out.A[k].rightCols(3).setZero();
+    out.g[k].tail(3).setZero();
+  }
+  return out;
+}
+
+// The group jackknife of groups [first, first + count) of `systems`: the Gauss-Newton step of
+// them all from the fit, and the covariance of its parameters as the spread of the
 // leave-one-group-out steps (the full step cancels about their mean, so the spread holds at a fit
 // that is no minimum in the skew: a rigid one).
 struct GroupJackknife {
@@ -920,45 +953,37 @@ struct GroupJackknife {
   SkewMatrix spread;
 };
 
-GroupJackknife groupJackknife(const FrameMatches& m, const RefinedRotation& fit, double threshold,
-                              const std::vector<int>& group, int groups, bool fit_skew) {
-  const bool pure = fit.pure_rotation || fit.translation.isZero();
-  const int dim = pure ? 6 : 8;
-  std::array<SkewMatrix, kMaxGroups> A;
-  std::array<SkewVector, kMaxGroups> g;
-  if (pure) {
-    std::array<RowSkewEquations, kMaxGroups> by_group;
-    rowSkewEquations(m, fit.rotation, fit.row_skew, kRotationGateScale * threshold, 0.0, &group, by_group.data());
-    for (int k = 0; k < groups; ++k) A[k] = by_group[k].hessian(fit.rotation), g[k] = by_group[k].rhs(fit.rotation);
-  } else {
-    std::array<SkewedEpipolarEquations, kMaxGroups> by_group;
-    skewedEpipolarEquations(m, fit.rotation, fit.translation, fit.row_skew, threshold, Weighting::kInliers, &group,
-                            by_group.data());
-    for (int k = 0; k < groups; ++k) std::tie(A[k], g[k]) = by_group[k].system(fit.rotation);
-  }
-  // A held skew: its three parameters (the last) leave every group's equations.
-  for (int k = 0; k < groups && !fit_skew; ++k) {
-    A[k].bottomRows(3).setZero();
-    A[k].rightCols(3).setZero();
-    g[k].tail(3).setZero();
-  }
+GroupJackknife jackknifeOver(const GroupSystems& systems, int first, int count) {
+  const int dim = systems.dim;
   SkewMatrix A_all = SkewMatrix::Zero(dim, dim);
   SkewVector g_all = SkewVector::Zero(dim);
-  for (int k = 0; k < groups; ++k) A_all += A[k], g_all += g[k];
-  if (!fit_skew) A_all.bottomRightCorner(3, 3).setIdentity();
+  for (int k = first; k < first + count; ++k) A_all += systems.A[k], g_all += systems.g[k];
+  if (!systems.fit_skew) A_all.bottomRightCorner(3, 3).setIdentity();
   const auto solve = [](SkewMatrix a, const SkewVector& b) -> SkewVector {
     a.diagonal().array() += 1e-12 * (a.diagonal().array().abs() + 1e-12);
     return a.ldlt().solve(-b);
   };
   GroupJackknife out;
   out.step = solve(A_all, g_all);
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, kMaxGroups> steps(dim, groups);
-  for (int k = 0; k < groups; ++k) steps.col(k) = solve(A_all - A[k], g_all - g[k]);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, kMaxGroups> steps(dim, count);
+  for (int k = 0; k < count; ++k) steps.col(k) = solve(A_all - systems.A[first + k], g_all - systems.g[first + k]);
   const SkewVector mean = steps.rowwise().mean();
   out.spread = SkewMatrix::Zero(dim, dim);
-  for (int k = 0; k < groups; ++k) out.spread.noalias() += (steps.col(k) - mean) * (steps.col(k) - mean).transpose();
-  out.spread *= static_cast<double>(groups - 1) / groups;
+  for (int k = 0; k < count; ++k) out.spread.noalias() += (steps.col(k) - mean) * (steps.col(k) - mean).transpose();
+  out.spread *= static_cast<double>(count - 1) / count;
   return out;
+}
+
+GroupJackknife groupJackknife(const FrameMatches& m, const RefinedRotation& fit, double threshold,
+                              const std::vector<int>& group, int groups, bool fit_skew) {
+  return jackknifeOver(groupSystems(m, fit, threshold, group, groups, fit_skew), 0, groups);
+}
+
+// Hotelling's T^2 = e^T S^-1 e; NaN where e or S is unusable.
+double hotellingT2(const Eigen::Vector3d& e, const Eigen::Matrix3d& S) {
+  const Eigen::FullPivLU<Eigen::Matrix3d> lu(S);
+  if (!e.allFinite() || !lu.isInvertible()) return std::numeric_limits<double>::quiet_NaN();
+  return e.dot(lu.inverse() * e);
 }
 
 // The inliers of `fit` (scratch.order) in kMaxGroups spatial groups (scratch.group); false with too
@@ -982,13 +1007,25 @@ bool setGeneralSkewFit(FrameMatches& m, double threshold, RefinedRotation* fit) 
 
 // The jackknife sees the errors neighbouring matches share, which the statistical covariance does
 // not: a global shutter's spurious skews reach statistical chi^2 values in the hundreds.
+// A rolling shutter turns every column of a row alike; an object moving through one side of the
+// view (a person walking past, water) changes the rows' rotation there alone, and the rigid fit of
+// the whole image can then call for a skew as well (a global-shutter hand-held room with 45 % of its
+// matches moving by 2 deg a pair: T^2 up to 175, and the stream taken for a rolling shutter, 1.2
+// deg off). So the skews the two halves of the view call for, each with its own rotation, must
+// agree: through a rolling shutter their difference stays within the same T^2 bound (at most 21 on
+// the rendered rolling-shutter rooms and the near drone), where the moving object's reached 225-357.
 double rowSkewSignificance(FrameMatches& m, const RefinedRotation& rigid, double threshold) {
   if (!groupInliers(m, rigid, threshold)) return std::numeric_limits<double>::quiet_NaN();
-  const GroupJackknife jack = groupJackknife(m, rigid, threshold, m.scratch.group, kMaxGroups, true);
-  const Eigen::Vector3d skew = jack.step.tail<3>();
-  const Eigen::FullPivLU<Eigen::Matrix3d> lu(jack.spread.bottomRightCorner<3, 3>());
-  if (!skew.allFinite() || !lu.isInvertible()) return std::numeric_limits<double>::quiet_NaN();
-  return skew.dot(lu.inverse() * skew);
+  const GroupSystems systems = groupSystems(m, rigid, threshold, m.scratch.group, kMaxGroups, true);
+  const GroupJackknife whole = jackknifeOver(systems, 0, kMaxGroups);
+  // spatialGroups numbers the groups strip by strip from the left: the first half is the left half.
+  const GroupJackknife left = jackknifeOver(systems, 0, kMaxGroups / 2);
+  const GroupJackknife right = jackknifeOver(systems, kMaxGroups / 2, kMaxGroups / 2);
+  const double disagreement =
+      hotellingT2(left.step.tail<3>() - right.step.tail<3>(),
+                  left.spread.bottomRightCorner<3, 3>() + right.spread.bottomRightCorner<3, 3>());
+  if (disagreement > kRowSkewSignificance) return 0.0;
+  return hotellingT2(whole.step.tail<3>(), whole.spread.bottomRightCorner<3, 3>());
 }
 
 bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {
