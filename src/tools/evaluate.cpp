@@ -89,13 +89,39 @@ struct Options {
   bool raw_gyro = false;
 };
 
+// The options that only print something (the usage, the lists, the settings table): true when
+// `args` holds one of them and it was printed.
+bool printedInformation(cli::Arguments& args) {
+  const auto commaList = [](const std::vector<std::string>& names) {
+    std::string list;
+    for (const auto& m : names) list += (list.empty() ? "" : ",") + m;
+    return list;
+  };
+  if (args.is("-h") || args.is("--help")) {
+    std::cout << kUsage;
+  } else if (args.is("--list-methods")) {
+    std::cout << commaList(eval::methodNames()) << "\n";
+  } else if (args.is("--list-ablations")) {
+    std::cout << commaList(eval::ablationMethodNames()) << "\n";
+  } else if (args.is("--settings-table")) {
+    std::cout << settingsMarkdownTable();
+  } else if (args.is("--list-backends")) {
+    std::string why;
+    const bool cuda = cudaBackendUsable(&why);
+    if (!cuda) std::cerr << "evaluate: no CUDA backend: " << why << std::endl;
+    std::cout << (cuda ? "cpu,cuda" : "cpu") << std::endl;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 Options parseOptions(int argc, char** argv) {
   Options o;
   bool have_folder = false;
   bool moving_deg_given = false;
   for (cli::Arguments args(argc, argv); args.next();) {
-    if (args.is("-h") || args.is("--help")) {
-      std::cout << kUsage;
+    if (printedInformation(args)) {
       std::exit(0);
     } else if (args.is("--method") || args.is("--methods")) {
       o.methods = args.listValue();
@@ -160,25 +186,6 @@ Options parseOptions(int argc, char** argv) {
       o.pairs.quiet = true;
     } else if (args.is("--raw-gyro")) {
       o.raw_gyro = true;
-    } else if (args.is("--list-methods")) {
-      std::string list;
-      for (const auto& m : eval::methodNames()) list += (list.empty() ? "" : ",") + m;
-      std::cout << list << "\n";
-      std::exit(0);
-    } else if (args.is("--list-ablations")) {
-      std::string list;
-      for (const auto& m : eval::ablationMethodNames()) list += (list.empty() ? "" : ",") + m;
-      std::cout << list << "\n";
-      std::exit(0);
-    } else if (args.is("--settings-table")) {
-      std::cout << settingsMarkdownTable();
-      std::exit(0);
-    } else if (args.is("--list-backends")) {
-      std::string why;
-      const bool cuda = cudaBackendUsable(&why);
-      if (!cuda) std::cerr << "evaluate: no CUDA backend: " << why << std::endl;
-      std::cout << (cuda ? "cpu,cuda" : "cpu") << std::endl;
-      std::exit(0);
     } else if (args.isOption() || have_folder) {
       args.unexpected();
     } else {
