@@ -1018,14 +1018,16 @@ double rowSkewSignificance(FrameMatches& m, const RefinedRotation& rigid, double
   if (!groupInliers(m, rigid, threshold)) return std::numeric_limits<double>::quiet_NaN();
   const GroupSystems systems = groupSystems(m, rigid, threshold, m.scratch.group, kMaxGroups, true);
   const GroupJackknife whole = jackknifeOver(systems, 0, kMaxGroups);
+  const double significance = hotellingT2(whole.step.tail<3>(), whole.spread.bottomRightCorner<3, 3>());
+  // Below the bound the frame calls for no skew whatever the halves say.
+  if (!(significance > kRowSkewSignificance)) return significance;
   // spatialGroups numbers the groups strip by strip from the left: the first half is the left half.
   const GroupJackknife left = jackknifeOver(systems, 0, kMaxGroups / 2);
   const GroupJackknife right = jackknifeOver(systems, kMaxGroups / 2, kMaxGroups / 2);
   const double disagreement =
       hotellingT2(left.step.tail<3>() - right.step.tail<3>(),
                   left.spread.bottomRightCorner<3, 3>() + right.spread.bottomRightCorner<3, 3>());
-  if (disagreement > kRowSkewSignificance) return 0.0;
-  return hotellingT2(whole.step.tail<3>(), whole.spread.bottomRightCorner<3, 3>());
+  return disagreement > kRowSkewSignificance ? 0.0 : significance;
 }
 
 bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {

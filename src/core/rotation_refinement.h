@@ -139,11 +139,11 @@ bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 
 /// How strongly a rigid refinement's matches call for a row skew (RefinedRotation::row_skew):
 /// Hotelling's T^2 = e^T S^-1 e of the one Gauss-Newton step e from the rigid fit in the skew's
-/// model, S the spread of that step over a 16-group spatial jackknife of the inliers. 0 where the
-/// left and the right half of the view (8 groups each, each with its own rotation) call for skews
-/// that differ beyond kRowSkewSignificance in the same statistic: a rolling shutter acts on every
-/// column alike, an independently moving object on its own. NaN with fewer inliers than the 16
-/// groups need (160).
+/// model, S the spread of that step over a 16-group spatial jackknife of the inliers. 0 where it
+/// exceeds kRowSkewSignificance but the left and the right half of the view (8 groups each, each
+/// with its own rotation) call for skews that differ beyond it in the same statistic: a rolling
+/// shutter acts on every column alike, an independently moving object on its own. NaN with fewer
+/// inliers than the 16 groups need (160).
 double rowSkewSignificance(FrameMatches& matches, const RefinedRotation& rigid, double threshold);
 
 /// The rowSkewSignificance beyond which the matches call for a skew: Hotelling's T^2 at 99.9 % for
