@@ -1229,43 +1229,6 @@ TEST(CandidateRefinement, TranslationOffsetOfAPureWinnerIsTheTranslationsBias) {
                   .isZero());
 }
 
-// Where a small translation's parallax lies within the inlier threshold, a pure rotation keeps
-// nearly every match by absorbing it: counted at the threshold the translation gains too little to
-// be chosen. Counted at the general motion's noise gate, what the rotation absorbed falls outside.
-TEST(ModelChoice, CountsAtTheGeneralMotionsNoiseGate) {
-  const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.5 * kDeg, 0.2 * kDeg);
-  const Vector3d t(0.008, 0.002, 0.0);  // 1.5-6 m away: parallax of 0.08-0.32 deg
-  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
-  const Scene s = makeScene(R, t, 800, 0.2e-3, 0.05, 1.5, 6, 23);
-  vg::FrameMatches matches;
-  matches.assign(s.previous, s.current);
-  vg::VerifiedRotation pure_start;
-  pure_start.rotation = R;
-  const vg::RefinedRotation pure = vg::refineRotation(matches, pure_start, threshold, 10);
-  const vg::RefinedRotation general = vg::refineMotion(matches, R, t.normalized(), threshold, 10);
-  ASSERT_TRUE(pure.pure_rotation);
-  ASSERT_FALSE(general.pure_rotation);
-  ASSERT_GT(general.noise_gate, 0);
-  const int k = general.noise_gate;
-  std::printf("threshold: pure %d, general %d inliers; noise gate %d: %d, %d; errors %.3f, %.3f deg\n", pure.inliers,
-              general.inliers, k, pure.inliers_at_gate[k], general.inliers_at_gate[k],
-              vg::rotationAngleBetween(pure.rotation, R) / kDeg, vg::rotationAngleBetween(general.rotation, R) / kDeg);
-  EXPECT_GT(vg::rotationAngleBetween(pure.rotation, R), 0.1 * kDeg) << "the rotation absorbed the parallax";
-  EXPECT_LT(vg::rotationAngleBetween(general.rotation, R), 0.03 * kDeg);
-  EXPECT_TRUE(vg::explainsBetter(general, pure));
-  EXPECT_FALSE(vg::explainsBetter(pure, general));
-  // Counted at the threshold (no counts at the gates) the pure rotation would have kept its place.
-  vg::RefinedRotation uncounted = pure;
-  uncounted.noise_gate = -1;
-  EXPECT_TRUE(vg::explainsBetter(uncounted, general));
-  // Held still, both fits' residuals are the noise: no gate makes the translation's two parameters pay.
-  const Scene still = makeScene(R, Vector3d::Zero(), 800, 0.2e-3, 0.05, 1.5, 6, 24);
-  matches.assign(still.previous, still.current);
-  const vg::RefinedRotation still_pure = vg::refineRotation(matches, pure_start, threshold, 10);
-  const vg::RefinedRotation still_general = vg::refineMotion(matches, R, t.normalized(), threshold, 10);
-  EXPECT_TRUE(vg::explainsBetter(still_pure, still_general));
-}
-
 // The estimator's part: a pure rotation chosen where a small lateral translation moves the
 // camera (its parallax within the inlier gate) is biased by it, and its covariance says so only
 // with the part; off in the ablation.
@@ -1315,44 +1278,6 @@ TEST(VoteCovariance, TranslationSpreadCoversTheOffsetAcrossTheView) {
 
 // The estimator's part: on by default, judged over a window of frames as a property of the camera,
 // reported in the diagnostics, off in the ablation.
-// A general motion's translation absorbs part of a rolling shutter's skew as it does a parallax:
-// where only the noise gate took it over the pure rotation, the pure rotation's skew decides.
-TEST(CandidateRefinement, APureRotationWithItsRowSkewKeepsItsPlace) {
-  const Matrix3d R = vg::rotationFromYawPitchRoll(-1.0 * kDeg, 0.6 * kDeg, -0.2 * kDeg);
-  const double threshold = cpuSettings("vote").inlier_threshold_deg * kDeg;
-  vg::Candidate candidate;
-  candidate.verified.rotation = R;
-  const auto choose = [&](const Scene& s, const Vector3d& t, bool* noise_gate_decided) {
-    vg::FrameMatches matches;
-    matches.assign(s.previous, s.current);
-    vg::RefinementChoice choice;
-    choice.winner = vg::refineRotation(matches, candidate.verified, threshold, 10);
-    choice.contenders = {choice.winner};
-    choice.contender_from = {&candidate};
-    choice.from = &candidate;
-    EXPECT_TRUE(choice.winner.pure_rotation);
-    vg::RefinedRotation counted_at_threshold = choice.winner;
-    counted_at_threshold.noise_gate = -1;
-    const vg::RefinedRotation general = vg::refineMotion(matches, R, t, threshold, 10);
-    *noise_gate_decided = !vg::explainsBetter(general, counted_at_threshold) && vg::explainsBetter(general, choice.winner);
-    EXPECT_TRUE(choice.challenge(general));
-    EXPECT_EQ(choice.from, &candidate);
-    const bool kept = vg::keepPureRotationWithRowSkew(matches, threshold, &choice);
-    EXPECT_EQ(kept, choice.winner.pure_rotation);
-    EXPECT_EQ(choice.from, &candidate);
-    return kept;
-  };
-  bool decided = false;
-  // A pure rotation through a rolling shutter: the general motion won by its noise gate alone.
-  const Scene shutter = rowSkewedScene(R, Vector3d(-0.25, 0.15, 0.05) * kDeg, 500, 0.2e-3, 31);
-  EXPECT_TRUE(choose(shutter, Vector3d(1, 0, 0), &decided));
-  EXPECT_TRUE(decided);
-  // A translation's parallax is no skew: the general motion stays.
-  const Scene moved = makeScene(R, Vector3d(0.008, 0.002, 0.0), 800, 0.2e-3, 0.05, 1.5, 6, 23);
-  EXPECT_FALSE(choose(moved, Vector3d(0.008, 0.002, 0.0).normalized(), &decided));
-  EXPECT_TRUE(decided);
-}
-
 TEST(VoteMethod, RowSkewIsJudgedOverAWindowOfFrames) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(-1.0 * kDeg, 0.6 * kDeg, -0.2 * kDeg);
   const Vector3d skew = Vector3d(-0.25, 0.15, 0.05) * kDeg;

@@ -200,13 +200,11 @@ bool descentMove(FrameMatches& matches, double threshold, double step_deg, doubl
 
 }  // namespace
 
-bool RefinementChoice::challenge(const RefinedRotation& r, const Candidate* source) {
+bool RefinementChoice::challenge(const RefinedRotation& r) {
   contenders.push_back(r);
-  contender_from.push_back(source);
   const bool wins = explainsBetter(r, winner);
   runner_up_inliers = std::max(runner_up_inliers, wins ? winner.inliers : r.inliers);
   if (wins) winner = r;
-  if (wins && source != nullptr) from = source;
   return wins;
 }
 
@@ -233,10 +231,9 @@ RefinementChoice refineCandidates(FrameMatches& matches, const CandidateVote& vo
     if (refined++ == 0) {
       choice.winner = r;
       choice.contenders.push_back(r);
-      choice.contender_from.push_back(&c);
       choice.from = &c;
-    } else {
-      choice.challenge(r, &c);
+    } else if (choice.challenge(r)) {
+      choice.from = &c;
     }
   }
   return choice;
@@ -329,29 +326,6 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
   return moved && choice->challenge(refineMotion(matches, rotation, translation, threshold, iterations));
 }
 
-// A rolling shutter exposes the rows one after another; while the hand's rate changes within the
-// pair, a general motion's translation absorbs part of that as it does a parallax, and at the
-// general motion's noise gate a pure rotation can then look worse than a general motion that took
-// the shutter for a translation (a rendered hand-held room through a 28 ms read-out at 15 Hz: 0.036
-// against 0.044 deg). Where the threshold's counts would have kept the pure rotation, its row skew
-// decides: what the skew explains at that gate is no translation.
-bool keepPureRotationWithRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice) {
-  if (choice->winner.pure_rotation) return false;
-  size_t pure = choice->contenders.size();
-  for (size_t k = 0; k < choice->contenders.size(); ++k) {
-    const RefinedRotation& c = choice->contenders[k];
-    if (c.pure_rotation && (pure == choice->contenders.size() ||
-                            c.truncated_cost < choice->contenders[pure].truncated_cost))
-      pure = k;
-  }
-  if (pure == choice->contenders.size() ||
-      !skewExplainsTheTranslation(matches, choice->winner, choice->contenders[pure], threshold))
-    return false;
-  choice->winner = choice->contenders[pure];
-  if (choice->contender_from[pure] != nullptr) choice->from = choice->contender_from[pure];
-  return true;
-}
-
 // The skew models what a rolling shutter does while the rate changes within the pair, not all of
 // it (the rows' translation near structure stays out), and the rigid fit explains the same
 // matches: neither excludes the other, so each is a contender of the other.
@@ -359,7 +333,6 @@ bool addRowSkew(FrameMatches& matches, double threshold, bool confirmed, Refinem
   RefinedRotation skewed = choice->winner;
   if (!fitRowSkew(matches, &skewed, threshold)) return false;
   choice->contenders.push_back(skewed);
-  choice->contender_from.push_back(nullptr);
   if (confirmed) choice->winner = skewed;
   return true;
 }

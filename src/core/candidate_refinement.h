@@ -22,13 +22,10 @@ struct RefinementChoice {
   RefinedRotation winner;
   const Candidate* from = nullptr;  ///< the candidate the winner was refined from (in the CandidateVote)
   std::vector<RefinedRotation> contenders;  ///< every refinement, the winner's included
-  /// The candidate each contender was refined from (in the CandidateVote); null for the searches'.
-  std::vector<const Candidate*> contender_from;
   int runner_up_inliers = -1;               ///< refined inliers of the best loser; -1: none
-  /// Adds `r`, refined from candidate `source` (null: a search's), to the contenders; it replaces
-  /// the winner when it explains the matches better (explainsBetter), and a candidate `source` then
-  /// becomes `from`. True when it did.
-  bool challenge(const RefinedRotation& r, const Candidate* source = nullptr);
+  /// Adds `r` to the contenders; it replaces the winner when it explains the matches better
+  /// (explainsBetter). True when it did.
+  bool challenge(const RefinedRotation& r);
 };
 
 /// Refines the candidates with a verified count of at least kRefineFraction of the best (at most
@@ -80,13 +77,6 @@ bool restartFromTranslations(FrameMatches& matches, double threshold, int iterat
 /// step's translation refitted, the best step taken while it lowers the cost); a refinement from
 /// where it ends challenges the winner. True when it won.
 bool descendTruncatedCost(FrameMatches& matches, double threshold, int iterations, RefinementChoice* choice);
-
-/// Where the model choice took a general-motion winner over the best pure-rotation contender (the
-/// lowest truncated cost) only at the general motion's noise gate, and that pure rotation with its
-/// row skew explains as much there (skewExplainsTheTranslation), the pure rotation takes the
-/// winner's place; the row skew's stage (addRowSkew) then judges its skew as any pure winner's.
-/// True when it did.
-bool keepPureRotationWithRowSkew(FrameMatches& matches, double threshold, RefinementChoice* choice);
 
 /// Once the refinements are chosen (on their rigid fits), where a frame's matches call for the row
 /// skew of a rolling shutter: the winner's skewed fit (fitRowSkew, with the rigid fit's inliers)

@@ -457,8 +457,6 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     diagnostics.restart_won = restartFromTranslations(w.matches, threshold, iterations, &choice);
   if (partEnabled(VotePart::kDescent))
     diagnostics.descent_won = descendTruncatedCost(w.matches, threshold, iterations, &choice);
-  if (partEnabled(VotePart::kRowSkew) && keepPureRotationWithRowSkew(w.matches, threshold, &choice))
-    diagnostics.previous_motion_won = diagnostics.restart_won = diagnostics.descent_won = false;
   if (partEnabled(VotePart::kRowSkew)) {
     // Once the stream has shown a rolling shutter every frame takes the skew; before (and on a
     // global shutter's odd frame) the frame's own call for one is not followed, but its rotation is

@@ -685,24 +685,11 @@ bool translationExplainsMore(int general, int pure, int matches) {
 
 }  // namespace
 
-namespace {
-void countAtNoiseGates(FrameMatches& m, double threshold, RefinedRotation* fit);
-}  // namespace
-
-// Counted at the inlier threshold, a pure rotation's inliers saturate where a translation's
-// parallax lies within the threshold: both models then keep nearly every match, the margin is not
-// met, and the rotation absorbs the parallax (a room moved by +-5 cm: 0.13 deg off against 0.011
-// deg for the general motion). At the general motion's noise gate the parallax the rotation
-// absorbed falls outside while the translation's inliers stay; where the translation has nothing
-// to explain, both fits' residuals are alike and so are their counts.
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b) {
   if (a.pure_rotation == b.pure_rotation) return a.truncated_cost < b.truncated_cost;
   const RefinedRotation& general = a.pure_rotation ? b : a;
   const RefinedRotation& pure = a.pure_rotation ? a : b;
-  const int gate = pure.noise_gate >= 0 ? general.noise_gate : -1;
-  const bool general_wins =
-      gate >= 0 ? translationExplainsMore(general.inliers_at_gate[gate], pure.inliers_at_gate[gate], pure.matches)
-                : translationExplainsMore(general.inliers, pure.inliers, pure.matches);
+  const bool general_wins = translationExplainsMore(general.inliers, pure.inliers, pure.matches);
   return a.pure_rotation ? !general_wins : general_wins;
 }
 
@@ -714,17 +701,13 @@ RefinedRotation refineRotation(FrameMatches& matches, const VerifiedRotation& st
   const bool pure = start.translation.isZero() ||
                     !translationExplainsMore(start.epipolar_inliers, start.rotation_inliers,
                                              static_cast<int>(matches.size()));
-  RefinedRotation refined = pure ? refinePureRotation(matches, start.rotation, threshold, iterations)
-                                 : refineGeneral(matches, start.rotation, start.translation, threshold, iterations);
-  countAtNoiseGates(matches, threshold, &refined);
-  return refined;
+  if (pure) return refinePureRotation(matches, start.rotation, threshold, iterations);
+  return refineGeneral(matches, start.rotation, start.translation, threshold, iterations);
 }
 
 RefinedRotation refineMotion(FrameMatches& matches, const Eigen::Matrix3d& rotation,
                              const Eigen::Vector3d& translation, double threshold, int iterations) {
-  RefinedRotation refined = refineGeneral(matches, rotation, translation.normalized(), threshold, iterations);
-  countAtNoiseGates(matches, threshold, &refined);
-  return refined;
+  return refineGeneral(matches, rotation, translation.normalized(), threshold, iterations);
 }
 
 namespace {
@@ -904,25 +887,6 @@ double fullGate(const RefinedRotation& fit, double threshold) {
   return pure ? kRotationGateScale * threshold : threshold;
 }
 
-// RefinedRotation::inliers_at_gate and noise_gate of a rigid fit.
-void countAtNoiseGates(FrameMatches& m, double threshold, RefinedRotation* fit) {
-  const FrameMatches::Scratch& s = m.scratch;
-  squaredResidualsOf(m, *fit);
-  const double full = fullGate(*fit, threshold);
-  std::array<double, kNoiseGates> gate2;
-  for (int k = 0; k < kNoiseGates; ++k) gate2[k] = full * full * std::pow(0.5, k);
-  std::array<int, kNoiseGates> counts{};
-  for (size_t i = 0; i < m.size(); ++i) {
-    if (!usable(s, i)) continue;
-    for (int k = 0; k < kNoiseGates; ++k) counts[k] += s.residuals[i] < gate2[k];
-  }
-  fit->inliers_at_gate = counts;
-  const double noise = 3.5 * fit->residual_sigma * (full / threshold);
-  int k = 0;
-  while (k + 1 < kNoiseGates && gate2[k + 1] >= noise * noise) ++k;
-  fit->noise_gate = k;
-}
-
 // The inliers of `fit` at its full gate, in index order, into scratch.order (its residuals those
 // of squaredResidualsOf); returns their count, and with `near` how many usable matches lie between
 // one and kNearMissGates gates.
@@ -1079,17 +1043,6 @@ bool fitRowSkew(FrameMatches& m, RefinedRotation* refined, double threshold) {
   if (fit.row_skew.isZero()) return false;
   *refined = fit;
   return true;
-}
-
-bool skewExplainsTheTranslation(FrameMatches& m, const RefinedRotation& general, const RefinedRotation& pure,
-                                double threshold) {
-  if (general.noise_gate < 0 || pure.noise_gate < 0) return false;
-  if (translationExplainsMore(general.inliers, pure.inliers, pure.matches)) return false;
-  RefinedRotation skewed = pure;
-  if (!fitRowSkew(m, &skewed, threshold)) return false;
-  countAtNoiseGates(m, threshold, &skewed);
-  const int gate = general.noise_gate;
-  return !translationExplainsMore(general.inliers_at_gate[gate], skewed.inliers_at_gate[gate], pure.matches);
 }
 
 double inlierHullArea(FrameMatches& m, const RefinedRotation& refined, double threshold) {

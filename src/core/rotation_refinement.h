@@ -103,10 +103,6 @@ VerifiedRotation verifyRotation(FrameMatches& matches, const Eigen::Matrix3d& ro
 double fittedTranslationCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
                              double threshold, int refits);
 
-/// Gates at which a refinement counts its inliers for the model choice: the full inlier gate
-/// scaled by 2^(-k/2), k = 0 .. kNoiseGates - 1, down to an eighth of it (the adaptive gate's floor).
-constexpr int kNoiseGates = 7;
-
 /// The refined rotation with its uncertainty.
 struct RefinedRotation {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
@@ -130,13 +126,6 @@ struct RefinedRotation {
   /// (sigma^2 (J^T J)^-1, the rotation marginalised out). Zero for a pure rotation.
   double translation_sigma = 0.0;
   int matches = 0;  ///< the frame's matches, those the fit chose its inliers among
-  /// Usable matches whose residual lies within each of the kNoiseGates gates (a pure rotation's
-  /// 2-D residual within kRotationGateScale times each), at the rigid fit.
-  std::array<int, kNoiseGates> inliers_at_gate{};
-  /// The narrowest of those gates that is at least 3.5 residual standard deviations (residual_sigma;
-  /// the adaptive gate's width) wide: the fit's noise gate. -1 where the counts were not taken (a
-  /// refinement's covariance refit), and the model choice then compares `inliers`.
-  int noise_gate = -1;
 };
 
 /// True when refinement `a` explains the matches better than `b`: a lower truncated cost under the
@@ -145,8 +134,7 @@ struct RefinedRotation {
 /// one both keep nearly every match but not equally tightly); between the models, the model choice
 /// of refineRotation: a general motion (two more degrees of freedom) wins when its translation
 /// explains clearly more matches than the pure rotation does, 15 % of its inliers more, or
-/// significantly more than half of the matches the pure rotation leaves unexplained, both counted
-/// at the general motion's noise gate (RefinedRotation::noise_gate) where both fits have theirs.
+/// significantly more than half of the matches the pure rotation leaves unexplained.
 bool explainsBetter(const RefinedRotation& a, const RefinedRotation& b);
 
 /// How strongly a rigid refinement's matches call for a row skew (RefinedRotation::row_skew):
@@ -175,13 +163,6 @@ constexpr size_t kRowSkewMinFrames = 5;
 /// inliers and truncated_cost stay the rigid fit's, which the model choice reads. False, and
 /// *refined unchanged, where the rows do not determine the skew.
 bool fitRowSkew(FrameMatches& matches, RefinedRotation* refined, double threshold);
-
-/// Whether a rolling shutter, not a translation, is what a general-motion refinement explains
-/// beyond a pure rotation's: where the model choice took `general` over `pure` only at the general
-/// motion's noise gate (counted at the threshold the pure rotation keeps its place), the pure
-/// rotation with its row skew fitted (fitRowSkew) explains as much at that gate.
-bool skewExplainsTheTranslation(FrameMatches& matches, const RefinedRotation& general, const RefinedRotation& pure,
-                                double threshold);
 
 /// Refines a verified rotation on its inliers. When a pure rotation explains (nearly) as many
 /// matches as rotation + translation, minimises the angular residuals |b_prev x R b_cur| (robust
