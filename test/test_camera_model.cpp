@@ -24,6 +24,14 @@ CameraModel equidistantFisheye() {
                       0.00020293673591811182});
 }
 
+// OpenCV's rational model (k1 k2 p1 p2 k3 k4 k5 k6), with coefficients of the size depth cameras
+// publish as "rational_polynomial": large terms that nearly cancel between numerator and
+// denominator (the radial factor stays within a few percent of 1 over the image).
+CameraModel rationalPolynomial() {
+  return CameraModel(607.0, 606.9, 638.6, 366.5, 1280, 720, DistortionModel::kPlumbBob,
+                     {0.5959, -2.8526, 0.000642, -0.000302, 1.6468, 0.4719, -2.6814, 1.5750});
+}
+
 /// Largest pixel error of pixel -> bearing -> pixel over a grid covering the whole image,
 /// corners included; also checks that every bearing has unit length.
 double maxRoundTripError(const CameraModel& camera, double step) {
@@ -61,6 +69,23 @@ TEST(CameraModel, RadTanWithK3RoundTrip) {
   ASSERT_EQ(camera.validate(), "");
   const double error = maxRoundTripError(camera, 10.0);
   EXPECT_LT(error, 1e-6) << "max round-trip error " << error << " px";
+}
+
+TEST(CameraModel, RationalPolynomialRoundTrip) {
+  const CameraModel camera = rationalPolynomial();
+  ASSERT_EQ(camera.validate(), "");
+  EXPECT_EQ(calibrationProblem(camera), "");
+  const double error = maxRoundTripError(camera, 10.0);
+  EXPECT_LT(error, 1e-6) << "max round-trip error " << error << " px";
+  // With k4..k6 zero the rational model is the five-coefficient one, to the bit.
+  const CameraModel five(700.0, 705.0, 640.0, 360.0, 1280, 720, DistortionModel::kPlumbBob,
+                         {-0.3, 0.12, 0.001, -0.0005, -0.02});
+  const CameraModel eight(700.0, 705.0, 640.0, 360.0, 1280, 720, DistortionModel::kPlumbBob,
+                          {-0.3, 0.12, 0.001, -0.0005, -0.02, 0.0, 0.0, 0.0});
+  for (const Eigen::Vector2d& pixel : {Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(333.3, 500.0)}) {
+    EXPECT_EQ(five.bearing(pixel.x(), pixel.y()), eight.bearing(pixel.x(), pixel.y()));
+    EXPECT_EQ(five.project(five.bearing(pixel.x(), pixel.y())), eight.project(five.bearing(pixel.x(), pixel.y())));
+  }
 }
 
 TEST(CameraModel, EquidistantRoundTrip) {
@@ -116,6 +141,7 @@ TEST(CameraModel, DistortionAgreesWithOpenCv) {
   expectMatchesOpenCv(CameraModel(700.0, 705.0, 640.0, 360.0, 1280, 720, DistortionModel::kPlumbBob,
                                   {-0.3, 0.12, 0.001, -0.0005, -0.02}));
   expectMatchesOpenCv(equidistantFisheye());
+  expectMatchesOpenCv(rationalPolynomial());
 }
 
 TEST(CameraModel, ZeroPlumbBobBehavesAsNone) {
@@ -186,6 +212,12 @@ TEST(CameraModel, ValidateNamesTheProblem) {
             .validate();
   EXPECT_NE(why.find("coefficients"), std::string::npos) << why;
   EXPECT_NE(why.find("got 3"), std::string::npos) << why;
+
+  why = CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kPlumbBob,
+                    {-0.28, 0.07, 0.0, 0.0, 0.0, 0.1, 0.0})
+            .validate();
+  EXPECT_NE(why.find("4, 5 or 8 coefficients"), std::string::npos) << why;
+  EXPECT_NE(why.find("got 7"), std::string::npos) << why;
 
   why = CameraModel(500.0, 500.0, 320.0, 240.0, 640, 480, DistortionModel::kEquidistant,
                     {0.01, 0.0, 0.0, 0.0, 0.0})
@@ -321,6 +353,15 @@ TEST(CalibrationProblem, DistortionThatCannotBeInvertedOverTheImage) {
   EXPECT_TRUE(contains(why, "equidistant distortion cannot be inverted")) << why;
 }
 
+TEST(CalibrationProblem, RationalDenominatorThatVanishesInsideTheImage) {
+  // 1 - r^2 in the denominator: the radial factor has a pole at r = 1, inside the image (its
+  // corners lie at r = 1.2); beyond it the model maps rays back across the principal point.
+  const std::string why = calibrationProblem(CameraModel(607.0, 606.9, 638.6, 366.5, 1280, 720,
+                                                         DistortionModel::kPlumbBob,
+                                                         {0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0}));
+  EXPECT_TRUE(contains(why, "rational_polynomial distortion cannot be inverted")) << why;
+}
+
 TEST(ParseDistortionModel, KnownAndUnknownNames) {
   DistortionModel model = DistortionModel::kEquidistant;
   EXPECT_TRUE(parseDistortionModel("plumb_bob", &model));
@@ -339,8 +380,11 @@ TEST(ParseDistortionModel, KnownAndUnknownNames) {
   EXPECT_TRUE(parseDistortionModel("none", &model));
   EXPECT_EQ(model, DistortionModel::kNone);
 
+  model = DistortionModel::kNone;
+  EXPECT_TRUE(parseDistortionModel("rational_polynomial", &model));
+  EXPECT_EQ(model, DistortionModel::kPlumbBob);
+
   model = DistortionModel::kEquidistant;
-  EXPECT_FALSE(parseDistortionModel("rational_polynomial", &model));
   EXPECT_FALSE(parseDistortionModel("pinhole-radtan-garbage", &model));
   EXPECT_EQ(model, DistortionModel::kEquidistant) << "an unknown name must leave *model alone";
 }

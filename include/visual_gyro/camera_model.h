@@ -10,12 +10,15 @@ namespace visual_gyro {
 /// Lens distortion models (names as in sensor_msgs/CameraInfo).
 enum class DistortionModel {
   kNone,         ///< pinhole, no distortion
-  kPlumbBob,     ///< "plumb_bob" / radial-tangential: k1, k2, p1, p2[, k3]
+  /// "plumb_bob" / radial-tangential, OpenCV's model: k1, k2, p1, p2[, k3[, k4, k5, k6]]; with
+  /// eight coefficients the rational model ("rational_polynomial"), whose radial factor is
+  /// (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6).
+  kPlumbBob,
   kEquidistant,  ///< "equidistant" (fisheye, Kannala-Brandt): k1, k2, k3, k4
 };
 
-/// Parses "plumb_bob", "rational_polynomial" is not supported, "radtan" (EuRoC), "equidistant",
-/// "" or "none"; returns false for an unknown name.
+/// Parses "plumb_bob", "rational_polynomial", "radtan" (EuRoC), "radial-tangential" (all
+/// kPlumbBob), "equidistant", "fisheye", "" or "none"; returns false for an unknown name.
 bool parseDistortionModel(const std::string& name, DistortionModel* model);
 
 /// Camera intrinsics. Pixel coordinates: origin at the centre of the top-left pixel, u right, v down.

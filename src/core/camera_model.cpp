@@ -1,4 +1,5 @@
-// Pinhole camera with optional lens distortion (plumb_bob / radial-tangential, equidistant).
+// Pinhole camera with optional lens distortion (plumb_bob / radial-tangential with OpenCV's rational
+// terms, equidistant).
 #include "visual_gyro/camera_model.h"
 #include "visual_gyro/geometry.h"
 
@@ -28,19 +29,28 @@ bool allZero(const std::vector<double>& values) {
   return std::all_of(values.begin(), values.end(), [](double v) { return v == 0.0; });
 }
 
-/// Radial-tangential distortion of a normalized point and its 2x2 Jacobian d(xd,yd)/d(x,y).
+/// Whether `count` coefficients make a radial-tangential model: k1 k2 p1 p2, k3, or the rational
+/// model's k4 k5 k6 as well (OpenCV's lengths of its distortion vector).
+bool radTanCount(size_t count) { return count == 4 || count == 5 || count == 8; }
+
+/// Radial-tangential distortion of a normalized point and its 2x2 Jacobian d(xd,yd)/d(x,y). The
+/// radial factor is (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6), OpenCV's; the
+/// denominator is 1 without k4..k6, so those models' arithmetic is the plain polynomial's.
 void distortRadTan(const std::vector<double>& d, double x, double y, double* xd, double* yd,
                    double jac[4]) {
   const double k1 = d[0], k2 = d[1], p1 = d[2], p2 = d[3];
   const double k3 = d.size() > 4 ? d[4] : 0.0;
+  const double k4 = d.size() > 7 ? d[5] : 0.0, k5 = d.size() > 7 ? d[6] : 0.0, k6 = d.size() > 7 ? d[7] : 0.0;
   const double x2 = x * x, y2 = y * y, xy = x * y;
   const double r2 = x2 + y2;
-  const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+  const double denominator = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6));
+  const double radial = (1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))) / denominator;
   *xd = x * radial + 2.0 * p1 * xy + p2 * (r2 + 2.0 * x2);
   *yd = y * radial + p1 * (r2 + 2.0 * y2) + 2.0 * p2 * xy;
   if (jac != nullptr) {
-    // d(radial)/d(r2)
-    const double dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2);
+    // d(radial)/d(r2), by the quotient rule.
+    const double dradial = (k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2) - radial * (k4 + r2 * (2.0 * k5 + 3.0 * k6 * r2))) /
+                           denominator;
     jac[0] = radial + 2.0 * x2 * dradial + 2.0 * p1 * y + 6.0 * p2 * x;  // dxd/dx
     jac[1] = 2.0 * xy * dradial + 2.0 * p1 * x + 2.0 * p2 * y;           // dxd/dy
     jac[2] = 2.0 * xy * dradial + 2.0 * p1 * x + 2.0 * p2 * y;           // dyd/dx
@@ -65,8 +75,8 @@ bool parseDistortionModel(const std::string& name, DistortionModel* model) {
   DistortionModel parsed;
   if (lower.empty() || lower == "none") {
     parsed = DistortionModel::kNone;
-  } else if (lower == "plumb_bob" || lower == "radtan" || lower == "radial-tangential" ||
-             lower == "radial_tangential") {
+  } else if (lower == "plumb_bob" || lower == "rational_polynomial" || lower == "radtan" ||
+             lower == "radial-tangential" || lower == "radial_tangential") {
     parsed = DistortionModel::kPlumbBob;
   } else if (lower == "equidistant" || lower == "fisheye") {
     parsed = DistortionModel::kEquidistant;
@@ -111,8 +121,8 @@ std::string CameraModel::validate() const {
         }
         break;
       case DistortionModel::kPlumbBob:
-        if (n != 4 && n != 5) {
-          why << "plumb_bob distortion needs 4 or 5 coefficients (k1 k2 p1 p2 [k3]), got " << n;
+        if (!radTanCount(n)) {
+          why << "plumb_bob distortion needs 4, 5 or 8 coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6]]), got " << n;
         }
         break;
       case DistortionModel::kEquidistant:
@@ -153,7 +163,7 @@ Eigen::Vector3d CameraModel::bearing(double u, double v) const {
     return Eigen::Vector3d(s * xd, s * yd, std::cos(theta)).normalized();
   }
   // kPlumbBob
-  if (distortion_.size() != 4 && distortion_.size() != 5) {
+  if (!radTanCount(distortion_.size())) {
     return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   }
   // Newton's method on distort(x, y) = (xd, yd), started at the distorted point. Within the image
@@ -351,7 +361,7 @@ std::string fieldOfViewProblem(const CameraModel& camera) {
   const std::vector<ImageRim> rim = imageRim(camera);
   std::ostringstream why;
   why.precision(3);
-  const std::string model = fisheye ? "equidistant" : "plumb_bob";
+  const std::string model = fisheye ? "equidistant" : camera.distortion().size() == 8 ? "rational_polynomial" : "plumb_bob";
   for (const ImageRim& r : rim) {
     if (!r.bearing.allFinite() || !(r.round_trip_error <= kMaxRoundTripErrorPx)) {
       why << "the " << model << " distortion cannot be inverted at the " << r.name << " (pixel "
@@ -436,8 +446,7 @@ Eigen::Vector2d CameraModel::project(const Eigen::Vector3d& bearing) const {
   if (model_ == DistortionModel::kNone || allZero(distortion_)) {
     return Eigen::Vector2d(fx_ * x + cx_, fy_ * y + cy_);
   }
-  if (model_ == DistortionModel::kPlumbBob &&
-      (distortion_.size() == 4 || distortion_.size() == 5)) {
+  if (model_ == DistortionModel::kPlumbBob && radTanCount(distortion_.size())) {
     double xd, yd;
     distortRadTan(distortion_, x, y, &xd, &yd, nullptr);
     return Eigen::Vector2d(fx_ * xd + cx_, fy_ * yd + cy_);

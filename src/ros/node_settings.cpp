@@ -88,11 +88,11 @@ std::vector<Field> makeFields() {
   f.push_back(atStart(withSpecial(doubleField<S>("cy", &S::cy, 0.0, 1e6, "px", "principal point without camera_info"),
                                   -1.0, "the image centre")));
   f.push_back(atStart(stringField<S>("distortion_model", &S::distortion_model,
-                                     {"none", "plumb_bob", "radtan", "equidistant"},
+                                     {"none", "plumb_bob", "rational_polynomial", "radtan", "equidistant"},
                                      "distortion model without camera_info")));
   f.push_back(doubleListField<S>("D", &S::D, -1e6, 1e6, "",
                                  "distortion coefficients without camera_info, in the model's order (plumb_bob: k1 k2 "
-                                 "p1 p2 [k3])"));
+                                 "p1 p2 [k3]; rational_polynomial: k1 k2 p1 p2 k3 k4 k5 k6; equidistant: k1 k2 k3 k4)"));
   f.push_back(atStart(withSpecial(
       intField<S>("mono16_bit_depth", &S::mono16_bit_depth, 8, 16, "",
                   "mono16 images: the camera's bit depth, a constant scale (brighter values saturate)"),

@@ -61,19 +61,20 @@ bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model
   } else if (name == sensor_msgs::distortion_models::PLUMB_BOB) {
     dm = DistortionModel::kPlumbBob;
   } else if (name == sensor_msgs::distortion_models::RATIONAL_POLYNOMIAL) {
-    // k1 k2 p1 p2 k3 k4 k5 k6: plumb_bob exactly when the rational terms vanish.
-    for (size_t i = 5; i < d.size(); ++i) {
+    // k1 k2 p1 p2 k3 k4 k5 k6. Some drivers append OpenCV's thin-prism and tilt terms (s1..s4,
+    // tau_x, tau_y), which the model lacks: a bearing without them would be silently wrong.
+    for (size_t i = 8; i < d.size(); ++i) {
       if (d[i] != 0.0) {
-        *why = "camera_info distortion model rational_polynomial with non-zero k4..k6 is not "
-               "supported (plumb_bob and equidistant are)";
+        *why = "camera_info distortion model rational_polynomial has a non-zero coefficient D[" + std::to_string(i) +
+               "] beyond k1 k2 p1 p2 k3 k4 k5 k6 (thin-prism or tilt terms are not supported)";
         return false;
       }
     }
-    if (d.size() > 5) d.resize(5);
+    d.resize(8, 0.0);
     dm = DistortionModel::kPlumbBob;
   } else if (!parseDistortionModel(name, &dm)) {
     *why = "camera_info distortion model '" + name +
-           "' is not supported (plumb_bob, rational_polynomial with k4..k6 = 0, equidistant)";
+           "' is not supported (plumb_bob, rational_polynomial, equidistant)";
     return false;
   }
   *model = CameraModel(fx, fy, cx, cy, width, height, dm, d);
@@ -93,9 +94,11 @@ sensor_msgs::CameraInfo cameraInfoFromModel(const CameraModel& model) {
       info.D = model.distortion();
       break;
     case DistortionModel::kPlumbBob:
-      info.distortion_model = sensor_msgs::distortion_models::PLUMB_BOB;
       info.D = model.distortion();
-      info.D.resize(5, 0.0);  // ROS tools expect k1 k2 p1 p2 k3
+      // ROS tools expect k1 k2 p1 p2 k3, and the rational model's eight under its own name.
+      info.distortion_model = info.D.size() == 8 ? sensor_msgs::distortion_models::RATIONAL_POLYNOMIAL
+                                                 : sensor_msgs::distortion_models::PLUMB_BOB;
+      if (info.D.size() < 5) info.D.resize(5, 0.0);
       break;
     default:
       info.distortion_model = sensor_msgs::distortion_models::PLUMB_BOB;

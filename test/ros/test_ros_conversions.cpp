@@ -1,9 +1,10 @@
 // ROS conversions without a master: mono16 scaling without state, malformed images found by the
-// fuzzer, CameraInfo binning that leaves no image.
+// fuzzer, CameraInfo binning that leaves no image, the rational_polynomial distortion model.
 #include <gtest/gtest.h>
 
 #include <cstring>
 
+#include <sensor_msgs/distortion_models.h>
 #include <sensor_msgs/image_encodings.h>
 
 #include "ros_conversions.h"
@@ -66,4 +67,33 @@ TEST(RosConversions, BinningThatLeavesNoImageIsNamed) {
   std::string why;
   EXPECT_FALSE(conv::cameraModelFromInfo(info, &model, &why));
   EXPECT_NE(why.find("binning"), std::string::npos) << why;
+}
+
+TEST(RosConversions, RationalPolynomialCameraInfo) {
+  sensor_msgs::CameraInfo info;
+  info.width = 1280;
+  info.height = 720;
+  info.K = {607.0, 0, 638.6, 0, 606.9, 366.5, 0, 0, 1};
+  info.distortion_model = sensor_msgs::distortion_models::RATIONAL_POLYNOMIAL;
+  info.D = {0.5959, -2.8526, 0.000642, -0.000302, 1.6468, 0.4719, -2.6814, 1.5750};
+  visual_gyro::CameraModel model;
+  std::string why;
+  ASSERT_TRUE(conv::cameraModelFromInfo(info, &model, &why)) << why;
+  const visual_gyro::CameraModel direct(607.0, 606.9, 638.6, 366.5, 1280, 720,
+                                        visual_gyro::DistortionModel::kPlumbBob, info.D);
+  EXPECT_EQ(model.distortion(), info.D);
+  EXPECT_EQ(model.bearing(10.0, 700.0), direct.bearing(10.0, 700.0));
+  // Back to a CameraInfo under the same name and coefficients.
+  const sensor_msgs::CameraInfo again = conv::cameraInfoFromModel(model);
+  EXPECT_EQ(again.distortion_model, sensor_msgs::distortion_models::RATIONAL_POLYNOMIAL);
+  EXPECT_EQ(again.D, info.D);
+
+  // Drivers that publish OpenCV's fourteen coefficients: the thin-prism and tilt terms must be
+  // zero, or the message is refused with the reason.
+  info.D.resize(14, 0.0);
+  ASSERT_TRUE(conv::cameraModelFromInfo(info, &model, &why)) << why;
+  EXPECT_EQ(model.bearing(10.0, 700.0), direct.bearing(10.0, 700.0));
+  info.D[8] = 0.01;
+  EXPECT_FALSE(conv::cameraModelFromInfo(info, &model, &why));
+  EXPECT_NE(why.find("D[8]"), std::string::npos) << why;
 }
