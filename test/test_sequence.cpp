@@ -333,6 +333,24 @@ TEST(SharedSequence, EurocShakeHasPoseTruth) {
   EXPECT_LT(max, 3.0);
 }
 
+TEST(Sequence, KittiLayoutReadsJpegAndOtherImageFiles) {
+  // A phone's frames are JPEGs; any image file OpenCV reads is a frame, in name order, and other
+  // files beside them are not.
+  const fs::path root = fs::path(test::makeTempDir("seq_kitti_jpeg")) / "phone";
+  writeImage(root / "image_0" / "000000.jpg");
+  writeImage(root / "image_0" / "000001.JPEG");
+  writeImage(root / "image_0" / "000002.png");
+  writeFile(root / "image_0" / "notes.txt", "not a frame\n");
+  writeFile(root / "calib.txt", "10 0 7.5 0 0 11 5.5 0 0 0 1 0\n");
+  const Sequence seq = loadSequence(root.string());
+  ASSERT_EQ(seq.image_paths.size(), 3u);
+  EXPECT_EQ(fs::path(seq.image_paths[1]).filename(), "000001.JPEG");
+  EXPECT_EQ(seq.camera.width(), 16);
+  fs::remove_all(root / "image_0");
+  writeFile(root / "image_0" / "notes.txt", "not a frame\n");
+  expectLoadError(root.string(), "no images");
+}
+
 TEST(Sequence, KittiLayoutDetails) {
   const fs::path root = fs::path(test::makeTempDir("seq_kitti")) / "tiny";
   for (int k = 0; k < 3; ++k) writeImage(root / "image_0" / ("00000" + std::to_string(k) + ".png"));

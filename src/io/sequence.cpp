@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -79,13 +80,18 @@ bool isRotation(const Eigen::Matrix3d& m, double tolerance) {
          m.determinant() > 0;
 }
 
-std::vector<std::string> sortedPngs(const fs::path& dir) {
+// Extensions of the image files a KITTI-layout folder may hold (lower case): PNG as KITTI's own,
+// and the formats phones and other datasets write, all of which OpenCV reads.
+constexpr std::array<const char*, 8> kImageExtensions = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff"};
+
+std::vector<std::string> sortedImages(const fs::path& dir) {
   std::vector<std::string> paths;
   for (const auto& entry : fs::directory_iterator(dir)) {
     if (!entry.is_regular_file()) continue;
     std::string ext = entry.path().extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    if (ext == ".png") paths.push_back(entry.path().string());
+    if (std::find(kImageExtensions.begin(), kImageExtensions.end(), ext) != kImageExtensions.end())
+      paths.push_back(entry.path().string());
   }
   std::sort(paths.begin(), paths.end());
   return paths;
@@ -107,8 +113,8 @@ Sequence loadKitti(const fs::path& root) {
   seq.layout = "kitti";
   fs::path image_dir = root / "image_l";
   if (!fs::is_directory(image_dir)) image_dir = root / "image_0";
-  seq.image_paths = sortedPngs(image_dir);
-  if (seq.image_paths.empty()) fail(image_dir, "no PNG images");
+  seq.image_paths = sortedImages(image_dir);
+  if (seq.image_paths.empty()) fail(image_dir, "no images (PNG, JPEG, PGM, PPM, BMP or TIFF)");
 
   // calib.txt: the first line with a 3x4 matrix ("P0: ..." or bare numbers) is the left camera.
   const fs::path calib = root / "calib.txt";
