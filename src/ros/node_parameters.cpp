@@ -99,7 +99,10 @@ bool NodeParameters::cameraFor(int width, int height, CameraModel* camera, std::
   const double cy_used = cy >= 0.0 ? cy : (height - 1) / 2.0;
   DistortionModel model = DistortionModel::kNone;
   if (!parseDistortionModel(distortion_model, &model)) {
-    *why = "~distortion_model '" + distortion_model + "' is not supported (none, plumb_bob, rational_polynomial, radtan, equidistant)";
+    std::string accepted;
+    for (const std::string& name : findNodeSetting("distortion_model")->choices)
+      accepted += (accepted.empty() ? "" : ", ") + name;
+    *why = "~distortion_model '" + distortion_model + "' is not supported (" + accepted + ")";
     return false;
   }
   if (!(fx_used > 0.0)) {

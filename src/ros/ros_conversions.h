@@ -18,8 +18,9 @@ namespace ros_conversions {
 /// Camera model from a CameraInfo: K (fx, fy, cx, cy), size, distortion model and D, with binning and
 /// ROI applied. "plumb_bob" takes 4, 5 or 8 coefficients; "rational_polynomial" takes k1 k2 p1 p2 k3
 /// k4 k5 k6 (fewer are padded with zeros; terms beyond them must be zero); "equidistant" takes 4; an
-/// empty or all-zero D means no distortion. Returns false with the reason in *why when the message cannot be used (e.g. an
-/// uncalibrated camera with K = 0). The model is not validated beyond that: call validate().
+/// empty or all-zero D means no distortion. Returns false with the reason in *why when the message
+/// cannot be used (e.g. an uncalibrated camera with K = 0). The model is not validated beyond that:
+/// call validate().
 bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model, std::string* why);
 
 /// CameraInfo for a model (K, P = [K | 0], R = I, D and distortion_model as ROS names them).
