@@ -3,13 +3,13 @@
 # `evaluate --list-methods`, on the same matches per run, on: the shared real sequences present;
 # their hard variants (dim, noisy JPEG footage, pairs several frames apart, wrong matches, both at
 # once, frames downscaled to a quarter); and rendered scenes (near structure, over four textures; a
-# dim blurred room, a blurred 1280 x 720 room, a hand-held room, the same through a phone-like
-# rolling shutter, also at half the frame rate, the hand-held room moved by centimetres through a
-# global and a rolling shutter, drone_near through the shutter, and the blurred 1280 x 720
+# dim blurred room, a blurred 1280 x 720 room over four textures, a hand-held room, the same through
+# a phone-like rolling shutter, also at half the frame rate, the hand-held room moved by centimetres
+# through a global and a rolling shutter, drone_near through the shutter, and the blurred 1280 x 720
 # room through a rolling shutter with the hand moving the camera by centimetres, over four textures:
-# its few, noisy matches change with the rendering). Each case runs with
-# estimator seeds 1-3; the per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv, score.png and a
-# last line of JSON (also out/score/score.json).
+# the dim rooms' few, noisy matches change with the rendering). Each case runs with estimator seeds
+# 1-3; the per-frame CSVs are pooled by scripts/score.py into out/score/score.md, score.csv,
+# score.png and a last line of JSON (also out/score/score.json).
 #
 # Kept to about 15 minutes on two cores by frame limits: at most SCORE_FRAMES pairs per case (default
 # 30: the first 30 pairs of every real sequence and variant), renders of SCORE_RENDER_FRAMES frames
@@ -113,7 +113,11 @@ for texture in 4 12 16; do
   render "drone_near_texture${texture}" --preset drone_near --seed "${texture}"
 done
 render dim_blur3_jpeg75 --preset dim --blur 3 --jpeg 75
-render dim_blur15_720p --preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900
+dim_blur15_720p_options=(--preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900)
+render dim_blur15_720p "${dim_blur15_720p_options[@]}"
+for texture in 4 12 16; do
+  render "dim_blur15_720p_texture${texture}" "${dim_blur15_720p_options[@]}" --seed "${texture}"
+done
 render handheld --preset handheld
 render handheld_rs --preset handheld_rs
 render handheld_rs_15hz --preset handheld_rs --rate 15
@@ -181,6 +185,10 @@ done
 run_case dim_blur3_jpeg75 "${OUT}/rendered/dim_blur3_jpeg75" "rendered dim room, 3 px motion blur, JPEG 75, 30 Hz"
 run_case dim_blur15_720p "${OUT}/rendered/dim_blur15_720p" \
   "rendered dim room at 1280 x 720 (f = 900 px), 15 px motion blur, JPEG 60, 30 Hz"
+for texture in 4 12 16; do
+  run_case "dim_blur15_720p_texture${texture}" "${OUT}/rendered/dim_blur15_720p_texture${texture}" \
+    "the same camera and motion through the dim room of renderer seed ${texture} (other doors, boxes, textures and noise)"
+done
 run_case handheld "${OUT}/rendered/handheld" "rendered hand-held room, 30 Hz"
 run_case handheld_moving0.45 "${OUT}/rendered/handheld" \
   "rendered hand-held room, the rightmost 45 % of the matches moving by a further 2 deg a pair (a person walking past)" \
