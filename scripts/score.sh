@@ -108,14 +108,17 @@ run_case() {
 }
 
 # 1. Renders (reused between runs).
+# Renderer seeds of the scenes rendered over other textures as well (drone_near and the two
+# 1280 x 720 dim rooms).
+TEXTURE_SEEDS=(4 12 16)
 render drone_near --preset drone_near
-for texture in 4 12 16; do
+for texture in "${TEXTURE_SEEDS[@]}"; do
   render "drone_near_texture${texture}" --preset drone_near --seed "${texture}"
 done
 render dim_blur3_jpeg75 --preset dim --blur 3 --jpeg 75
 dim_blur15_720p_options=(--preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900)
 render dim_blur15_720p "${dim_blur15_720p_options[@]}"
-for texture in 4 12 16; do
+for texture in "${TEXTURE_SEEDS[@]}"; do
   render "dim_blur15_720p_texture${texture}" "${dim_blur15_720p_options[@]}" --seed "${texture}"
 done
 render handheld --preset handheld
@@ -127,7 +130,7 @@ render drone_near_rs --preset drone_near --rolling-shutter-ms 28
 dim_hand_rs_options=(--preset dim --blur 15 --jpeg 60 --width 1280 --height 720 --focal 900 --rolling-shutter-ms 33
   --hand-translation-cm 6)
 render dim_hand_rs "${dim_hand_rs_options[@]}"
-for texture in 4 12 16; do
+for texture in "${TEXTURE_SEEDS[@]}"; do
   render "dim_hand_rs_texture${texture}" "${dim_hand_rs_options[@]}" --seed "${texture}"
 done
 
@@ -178,14 +181,14 @@ run_case mh01_moving0.3 "${shake}" \
 
 # 6. Rendered scenes (exact truth).
 run_case drone_near "${OUT}/rendered/drone_near" "rendered drone_near: shaken 1-2 m from boxes, 20 Hz"
-for texture in 4 12 16; do
+for texture in "${TEXTURE_SEEDS[@]}"; do
   run_case "drone_near_texture${texture}" "${OUT}/rendered/drone_near_texture${texture}" \
     "rendered drone_near's motion over the boxes of renderer seed ${texture} (other textures, other basins)"
 done
 run_case dim_blur3_jpeg75 "${OUT}/rendered/dim_blur3_jpeg75" "rendered dim room, 3 px motion blur, JPEG 75, 30 Hz"
 run_case dim_blur15_720p "${OUT}/rendered/dim_blur15_720p" \
   "rendered dim room at 1280 x 720 (f = 900 px), 15 px motion blur, JPEG 60, 30 Hz"
-for texture in 4 12 16; do
+for texture in "${TEXTURE_SEEDS[@]}"; do
   run_case "dim_blur15_720p_texture${texture}" "${OUT}/rendered/dim_blur15_720p_texture${texture}" \
     "the same camera and motion through the dim room of renderer seed ${texture} (other doors, boxes, textures and noise)"
 done
@@ -205,7 +208,7 @@ run_case drone_near_rs "${OUT}/rendered/drone_near_rs" \
   "rendered drone_near through a rolling shutter (28 ms read-out), 20 Hz: translation near structure"
 run_case dim_hand_rs "${OUT}/rendered/dim_hand_rs" \
   "rendered dim room at 1280 x 720 (f = 900 px), 15 px blur, JPEG 60, through a 33 ms rolling shutter, the hand moving the camera by +-6 cm, 30 Hz"
-for texture in 4 12 16; do
+for texture in "${TEXTURE_SEEDS[@]}"; do
   run_case "dim_hand_rs_texture${texture}" "${OUT}/rendered/dim_hand_rs_texture${texture}" \
     "rendered dim_hand_rs's motion through the room of renderer seed ${texture} (other doors, boxes, textures and noise)"
 done

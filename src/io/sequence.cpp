@@ -114,7 +114,11 @@ Sequence loadKitti(const fs::path& root) {
   fs::path image_dir = root / "image_l";
   if (!fs::is_directory(image_dir)) image_dir = root / "image_0";
   seq.image_paths = sortedImages(image_dir);
-  if (seq.image_paths.empty()) fail(image_dir, "no images (PNG, JPEG, PGM, PPM, BMP or TIFF)");
+  if (seq.image_paths.empty()) {
+    std::string accepted;
+    for (const char* ext : kImageExtensions) accepted += (accepted.empty() ? "" : " ") + std::string(ext);
+    fail(image_dir, "no images (" + accepted + ")");
+  }
 
   // calib.txt: the first line with a 3x4 matrix ("P0: ..." or bare numbers) is the left camera.
   const fs::path calib = root / "calib.txt";
