@@ -20,6 +20,7 @@ add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_r
 # ROS conversions without a master (mono16 scaling, malformed images, binning).
 catkin_add_gtest(test_ros_conversions test/ros/test_ros_conversions.cpp)
 target_link_libraries(test_ros_conversions visual_gyro_ros_tools ${catkin_LIBRARIES} gtest_main)
+target_compile_definitions(test_ros_conversions PRIVATE VISUAL_GYRO_SOURCE_DIR="${VISUAL_GYRO_REPO_DIR}")
 
 # The nodelet's output messages without a master (invalid = identity, Imu policy, output frame).
 catkin_add_gtest(test_output_messages test/ros/test_output_messages.cpp)

@@ -108,10 +108,80 @@ sensor_msgs::CameraInfo cameraInfoFromModel(const CameraModel& model) {
   return info;
 }
 
-bool isSupportedEncoding(const std::string& encoding) {
-  return encoding == enc::MONO8 || encoding == enc::MONO16 || encoding == enc::BGR8 ||
-         encoding == enc::RGB8 || encoding == enc::BGRA8 || encoding == enc::RGBA8;
+namespace {
+
+// How a pixel encoding becomes grey: used as it is, the mono16 scaling, or a cv::cvtColor code.
+constexpr int kAsIs = -1;
+constexpr int kMono16 = -2;
+
+struct EncodingConversion {
+  const char* encoding;
+  int type;     ///< cv::Mat type of the message's pixels
+  int to_gray;  ///< kAsIs, kMono16 or a cv::ColorConversionCodes value
+  int width_multiple;  ///< the width must be a multiple of this (pixel pairs of YUV 4:2:2)
+  int min_side;        ///< smallest width and height the conversion reads
+};
+
+// ROS names a Bayer mosaic by its top-left 2 x 2 cell, OpenCV by the cell one row and one column
+// further in (cv_bridge's mapping): bayer_rggb8 is OpenCV's BayerBG. ROS's yuv422 is UYVY byte
+// order; yuv422_yuy2 (newer drivers, e.g. usb_cam) is YUYV. Grey is their Y (luma) samples.
+constexpr EncodingConversion kConversions[] = {
+    {"mono8", CV_8UC1, kAsIs, 1, 1},
+    {"8UC1", CV_8UC1, kAsIs, 1, 1},
+    {"mono16", CV_16UC1, kMono16, 1, 1},
+    {"bgr8", CV_8UC3, cv::COLOR_BGR2GRAY, 1, 1},
+    {"rgb8", CV_8UC3, cv::COLOR_RGB2GRAY, 1, 1},
+    {"bgra8", CV_8UC4, cv::COLOR_BGRA2GRAY, 1, 1},
+    {"rgba8", CV_8UC4, cv::COLOR_RGBA2GRAY, 1, 1},
+    {"bayer_rggb8", CV_8UC1, cv::COLOR_BayerBG2GRAY, 1, 2},
+    {"bayer_bggr8", CV_8UC1, cv::COLOR_BayerRG2GRAY, 1, 2},
+    {"bayer_gbrg8", CV_8UC1, cv::COLOR_BayerGR2GRAY, 1, 2},
+    {"bayer_grbg8", CV_8UC1, cv::COLOR_BayerGB2GRAY, 1, 2},
+    {"yuv422", CV_8UC2, cv::COLOR_YUV2GRAY_UYVY, 2, 1},
+    {"yuv422_yuy2", CV_8UC2, cv::COLOR_YUV2GRAY_YUY2, 2, 1},
+};
+
+const EncodingConversion* conversionOf(const std::string& encoding) {
+  for (const EncodingConversion& c : kConversions) {
+    if (encoding == c.encoding) return &c;
+  }
+  return nullptr;
 }
+
+// A mono16 frame's native byte order, scaled to 8 bits as toGray() states.
+cv::Mat mono16ToGray(const sensor_msgs::Image& image, const cv::Mat& raw, int mono16_bit_depth) {
+  cv::Mat host = raw;
+  const bool host_big_endian = (*reinterpret_cast<const uint16_t*>("\x01\x00") != 1);
+  if (static_cast<bool>(image.is_bigendian) != host_big_endian) {
+    host = raw.clone();
+    for (int r = 0; r < host.rows; ++r) {
+      auto* p = host.ptr<uint16_t>(r);
+      for (int c = 0; c < host.cols; ++c) p[c] = static_cast<uint16_t>((p[c] >> 8) | (p[c] << 8));
+    }
+  }
+  int bits = mono16_bit_depth;
+  if (bits == 0) {
+    // Per frame, with no state: one saturated pixel darkens only its own frame.
+    double max_value = 0.0;
+    cv::minMaxLoc(host, nullptr, &max_value);
+    bits = 8;
+    while (bits < 16 && (1 << bits) - 1 < max_value) ++bits;
+  }
+  // convertTo saturates: values above the declared depth read as white.
+  cv::Mat gray;
+  host.convertTo(gray, CV_8U, 255.0 / ((1 << bits) - 1));
+  return gray;
+}
+
+}  // namespace
+
+std::vector<std::string> supportedEncodings() {
+  std::vector<std::string> names;
+  for (const EncodingConversion& c : kConversions) names.emplace_back(c.encoding);
+  return names;
+}
+
+bool isSupportedEncoding(const std::string& encoding) { return conversionOf(encoding) != nullptr; }
 
 cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth) {
   const std::string& e = image.encoding;
@@ -119,19 +189,20 @@ cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth) {
     throw std::invalid_argument("mono16 bit depth must be 0 (per frame) or 8..16, got " +
                                 std::to_string(mono16_bit_depth));
   }
-  if (!isSupportedEncoding(e)) {
-    throw std::invalid_argument("unsupported image encoding '" + e +
-                                "' (mono8, mono16, bgr8, rgb8, bgra8, rgba8 are)");
+  const EncodingConversion* conversion = conversionOf(e);
+  if (conversion == nullptr) {
+    std::string names;
+    for (const std::string& name : supportedEncodings()) names += (names.empty() ? "" : ", ") + name;
+    throw std::invalid_argument("unsupported image encoding '" + e + "' (" + names + " are)");
   }
-  int type = CV_8UC1;
-  if (e == enc::MONO16) type = CV_16UC1;
-  else if (e == enc::BGR8 || e == enc::RGB8) type = CV_8UC3;
-  else if (e == enc::BGRA8 || e == enc::RGBA8) type = CV_8UC4;
+  const int type = conversion->type;
   const size_t row_bytes = static_cast<size_t>(image.width) * CV_ELEM_SIZE(type);
   // cv::Mat takes int sizes and a size_t step; larger claims are malformed (and would overflow).
   constexpr uint32_t kMaxSide = 1u << 20;
-  if (image.width == 0 || image.height == 0 || image.width > kMaxSide || image.height > kMaxSide ||
-      image.step < row_bytes || image.step % CV_ELEM_SIZE1(type) != 0 ||
+  const auto side = static_cast<uint32_t>(conversion->min_side);
+  if (image.width < side || image.height < side || image.width > kMaxSide || image.height > kMaxSide ||
+      image.width % conversion->width_multiple != 0 || image.step < row_bytes ||
+      image.step % CV_ELEM_SIZE1(type) != 0 ||
       image.data.size() < static_cast<size_t>(image.step) * image.height) {
     throw std::invalid_argument("malformed image: " + std::to_string(image.width) + "x" +
                                 std::to_string(image.height) + " step " +
@@ -140,38 +211,10 @@ cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth) {
   }
   const cv::Mat raw(static_cast<int>(image.height), static_cast<int>(image.width), type,
                     const_cast<uint8_t*>(image.data.data()), image.step);
+  if (conversion->to_gray == kAsIs) return raw;
+  if (conversion->to_gray == kMono16) return mono16ToGray(image, raw, mono16_bit_depth);
   cv::Mat gray;
-  if (type == CV_8UC1) {
-    gray = raw;
-  } else if (type == CV_16UC1) {
-    cv::Mat host = raw;
-    const bool host_big_endian = (*reinterpret_cast<const uint16_t*>("\x01\x00") != 1);
-    if (static_cast<bool>(image.is_bigendian) != host_big_endian) {
-      host = raw.clone();
-      for (int r = 0; r < host.rows; ++r) {
-        auto* p = host.ptr<uint16_t>(r);
-        for (int c = 0; c < host.cols; ++c) p[c] = static_cast<uint16_t>((p[c] >> 8) | (p[c] << 8));
-      }
-    }
-    int bits = mono16_bit_depth;
-    if (bits == 0) {
-      // Per frame, with no state: one saturated pixel darkens only its own frame.
-      double max_value = 0.0;
-      cv::minMaxLoc(host, nullptr, &max_value);
-      bits = 8;
-      while (bits < 16 && (1 << bits) - 1 < max_value) ++bits;
-    }
-    // convertTo saturates: values above the declared depth read as white.
-    host.convertTo(gray, CV_8U, 255.0 / ((1 << bits) - 1));
-  } else if (e == enc::BGR8) {
-    cv::cvtColor(raw, gray, cv::COLOR_BGR2GRAY);
-  } else if (e == enc::RGB8) {
-    cv::cvtColor(raw, gray, cv::COLOR_RGB2GRAY);
-  } else if (e == enc::BGRA8) {
-    cv::cvtColor(raw, gray, cv::COLOR_BGRA2GRAY);
-  } else {
-    cv::cvtColor(raw, gray, cv::COLOR_RGBA2GRAY);
-  }
+  cv::cvtColor(raw, gray, conversion->to_gray);
   return gray;
 }
 

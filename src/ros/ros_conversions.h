@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -26,16 +27,22 @@ bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model
 /// CameraInfo for a model (K, P = [K | 0], R = I, D and distortion_model as ROS names them).
 sensor_msgs::CameraInfo cameraInfoFromModel(const CameraModel& model);
 
-/// True when the encoding is one the nodelet converts to gray: mono8, mono16, bgr8, rgb8, bgra8,
-/// rgba8.
+/// The encodings the nodelet converts to grey, in the order the docs list them: mono8, 8UC1,
+/// mono16, bgr8, rgb8, bgra8, rgba8, the four 8-bit Bayer mosaics (bayer_rggb8, ...), yuv422
+/// (UYVY) and yuv422_yuy2 (YUYV).
+std::vector<std::string> supportedEncodings();
+
+/// True when the encoding is one of supportedEncodings().
 bool isSupportedEncoding(const std::string& encoding);
 
-/// Converts an image of a supported encoding to CV_8UC1 (mono8 is shared, not copied).
+/// Converts an image of a supported encoding to CV_8UC1 (mono8 and 8UC1 are shared, not copied;
+/// a Bayer mosaic is demosaiced to grey, YUV 4:2:2 gives its Y samples).
 /// mono16 is scaled by 255 / (2^bits - 1): bits = mono16_bit_depth (8..16, e.g. 12 for a 12-bit
 /// camera; larger values saturate), or, when it is 0, the smallest depth (>= 8) covering this
 /// frame's largest value, so 12-bit cameras are not dark. No state survives a frame. Throws
 /// std::invalid_argument for other encodings, a bit depth outside 0 or 8..16, or a malformed
-/// image (step or size inconsistent, a 16-bit row step that is odd, a side above 2^20).
+/// image (step or size inconsistent, a 16-bit row step that is odd, a side above 2^20, a Bayer
+/// mosaic under 2 x 2 pixels, a YUV 4:2:2 width that is odd).
 cv::Mat toGray(const sensor_msgs::Image& image, int mono16_bit_depth);
 
 /// Row-major copy of a 3x3 matrix into a float64[9] field.

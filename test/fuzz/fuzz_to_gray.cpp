@@ -36,7 +36,9 @@ class Reader {
   size_t offset_ = 0;
 };
 
-const char* const kEncodings[] = {"mono8", "mono16", "bgr8", "rgb8", "bgra8", "rgba8", "32FC1", "", "yuv422", "mono"};
+const char* const kEncodings[] = {"mono8", "8UC1", "mono16", "bgr8", "rgb8", "bgra8", "rgba8",
+                                  "bayer_rggb8", "bayer_bggr8", "bayer_gbrg8", "bayer_grbg8", "yuv422",
+                                  "yuv422_yuy2", "32FC1", "", "bayer_rggb16", "mono"};
 
 }  // namespace
 

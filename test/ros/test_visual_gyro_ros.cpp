@@ -292,7 +292,7 @@ TEST(VisualGyroRos, EqualStampIsSkipped) {
   EXPECT_NEAR(rotations[0].yaw / kDeg, 1.0, 0.15);
 }
 
-TEST(VisualGyroRos, ColourAndSixteenBitEncodingsAreConverted) {
+TEST(VisualGyroRos, ColourBayerYuvAndSixteenBitEncodingsAreConverted) {
   Harness& h = *g_harness;
   h.subscribeOutputs();
   ASSERT_TRUE(h.waitSubscribed());
@@ -307,9 +307,14 @@ TEST(VisualGyroRos, ColourAndSixteenBitEncodingsAreConverted) {
   ASSERT_TRUE(h.send(bgr, sensor_msgs::image_encodings::BGR8, t0 + 0.1));
   ASSERT_TRUE(h.send(rgba, sensor_msgs::image_encodings::RGBA8, t0 + 0.2));
   ASSERT_TRUE(h.send(mono16, sensor_msgs::image_encodings::MONO16, t0 + 0.3));
+  // A grey scene's Bayer mosaic is the grey image itself; its UYVY frame has chroma 128.
+  ASSERT_TRUE(h.send(images[4], sensor_msgs::image_encodings::BAYER_RGGB8, t0 + 0.4));
+  cv::Mat uyvy;
+  cv::merge(std::vector<cv::Mat>{cv::Mat(images[5].size(), CV_8UC1, cv::Scalar(128)), images[5]}, uyvy);
+  ASSERT_TRUE(h.send(uyvy, sensor_msgs::image_encodings::YUV422, t0 + 0.5));
   h.settle();
   const auto rotations = h.rotations();
-  ASSERT_EQ(rotations.size(), 3u);
+  ASSERT_EQ(rotations.size(), 5u);
   for (const auto& m : rotations) {
     EXPECT_TRUE(m.valid) << m.status;
     EXPECT_NEAR(m.yaw / kDeg, 1.0, 0.15);
