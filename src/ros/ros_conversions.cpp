@@ -5,12 +5,9 @@
 
 #include <opencv2/imgproc.hpp>
 #include <sensor_msgs/distortion_models.h>
-#include <sensor_msgs/image_encodings.h>
 
 namespace visual_gyro {
 namespace ros_conversions {
-
-namespace enc = sensor_msgs::image_encodings;
 
 bool cameraModelFromInfo(const sensor_msgs::CameraInfo& info, CameraModel* model, std::string* why) {
   double fx = info.K[0], fy = info.K[4], cx = info.K[2], cy = info.K[5];
@@ -116,8 +113,8 @@ constexpr int kMono16 = -2;
 
 struct EncodingConversion {
   const char* encoding;
-  int type;     ///< cv::Mat type of the message's pixels
-  int to_gray;  ///< kAsIs, kMono16 or a cv::ColorConversionCodes value
+  int type;            ///< cv::Mat type of the message's pixels
+  int to_gray;         ///< kAsIs, kMono16 or a cv::ColorConversionCodes value
   int width_multiple;  ///< the width must be a multiple of this (pixel pairs of YUV 4:2:2)
   int min_side;        ///< smallest width and height the conversion reads
 };
