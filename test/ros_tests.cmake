@@ -17,7 +17,8 @@ add_rostest(test/ros/visual_gyro_output_frame.test DEPENDENCIES test_visual_gyro
 # The same with intrinsics from parameters instead of camera_info (plain image subscription).
 add_rostest(test/ros/visual_gyro_parameters.test DEPENDENCIES test_visual_gyro_ros visual_gyro_node)
 
-# ROS conversions without a master (mono16 scaling, malformed images, binning).
+# ROS conversions without a master (mono16 scaling, Bayer and YUV images, malformed images,
+# binning; the encodings the docs list).
 catkin_add_gtest(test_ros_conversions test/ros/test_ros_conversions.cpp)
 target_link_libraries(test_ros_conversions visual_gyro_ros_tools ${catkin_LIBRARIES} gtest_main)
 target_compile_definitions(test_ros_conversions PRIVATE VISUAL_GYRO_SOURCE_DIR="${VISUAL_GYRO_REPO_DIR}")
