@@ -153,8 +153,9 @@ struct VoteDiagnostics {
   /// itself), "identity", "previous_motion" (the refinement started from the prior rotation and
   /// the previous frame's translation direction), "restart" (a refinement restarted from the
   /// winner's or a contender's rotation with another translation direction, when the winner
-  /// explained too few matches), or "descent" (a refinement from the end of a descent on the
-  /// truncated cost, under the same condition); "" when none was verified.
+  /// explained too few matches), "descent" (a refinement from the end of a descent on the
+  /// truncated cost, under the same condition), or "weak_support" (the pure rotation that replaced
+  /// a general motion resting on few inliers); "" when none was verified.
   std::string winner_source;
   int candidates_verified = 0;  ///< candidate rotations checked against all matches
   /// The rotation/translation valley of a close scene was searched (general motion with a
@@ -170,6 +171,9 @@ struct VoteDiagnostics {
   /// The refinement from the end of the descent on the truncated cost (run after the restarts,
   /// under the same condition) won.
   bool descent_won = false;
+  /// A general-motion winner resting on few inliers was replaced by the pure rotation, which keeps
+  /// most of them (the final choice of model where the support is weak).
+  bool weak_support_pure = false;
   int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
   int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation
   /// Refined inliers of the best losing candidate; -1 when only the winner was refined.
@@ -274,6 +278,7 @@ enum class VotePart : uint8_t {
   kRowSkew,           ///< a pure rotation's change down the image (a rolling shutter's)
   kTranslationSpread, ///< a pure rotation's covariance covering what an unmodelled translation moves
   kContenderMean,     ///< the estimate as the likelihood-weighted mean of the refinements of its model
+  kWeakSupport,       ///< a pure rotation for a general motion resting on few inliers, where it keeps most
   kCount
 };
 /// The part's name in `vote-without-<name>` ("wide_vote", "prior_candidate", ...).

@@ -117,7 +117,7 @@ void RotationResult::invalidate(FrameStatus why, const std::string& details) {
 constexpr std::array<const char*, static_cast<size_t>(VotePart::kCount)> kVotePartNames = {
     "wide_vote", "prior_candidate", "identity_candidate", "refine_contenders", "previous_motion",
     "valley", "restarts", "descent", "refit_jackknife", "contender_spread", "row_skew", "translation_spread",
-    "contender_mean"};
+    "contender_mean", "weak_support"};
 
 const char* votePartName(VotePart part) {
   return part < VotePart::kCount ? kVotePartNames[static_cast<size_t>(part)] : "";
@@ -390,7 +390,8 @@ void fillVoteResult(const CandidateVote& vote, const RefinementChoice& choice, c
   diagnostics->prior_used = prior != nullptr;
   diagnostics->wide_vote = vote.wide_vote;
   diagnostics->candidates_verified = static_cast<int>(vote.candidates.size());
-  diagnostics->winner_source = diagnostics->descent_won           ? "descent"
+  diagnostics->winner_source = diagnostics->weak_support_pure     ? "weak_support"
+                               : diagnostics->descent_won         ? "descent"
                                : diagnostics->restart_won         ? "restart"
                                : diagnostics->previous_motion_won ? "previous_motion"
                                                                   : candidateSourceName(choice.from->source);
@@ -457,6 +458,8 @@ RotationResult RotationEstimator::estimateVote(const std::vector<Eigen::Vector3d
     diagnostics.restart_won = restartFromTranslations(w.matches, threshold, iterations, &choice);
   if (partEnabled(VotePart::kDescent))
     diagnostics.descent_won = descendTruncatedCost(w.matches, threshold, iterations, &choice);
+  if (partEnabled(VotePart::kWeakSupport))
+    diagnostics.weak_support_pure = preferPureOnWeakSupport(w.matches, vote, threshold, iterations, &choice);
   if (partEnabled(VotePart::kRowSkew)) {
     // Once the stream has shown a rolling shutter every frame takes the skew; before (and on a
     // global shutter's odd frame) the frame's own call for one is not followed, but its rotation is
