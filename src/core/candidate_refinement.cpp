@@ -329,9 +329,9 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
 // A translation's two parameters fitted on a few dozen noisy matches leave the rotation loose along
 // the rotation/translation valley: the dim, blurred hand-held rooms' general-motion pairs at full
 // resolution were 0.14-0.29 deg off under a sigma of 0.2-0.4 deg, where a pure rotation on the same
-// pairs was 0.14-0.17 deg off. A pure rotation that keeps most of those inliers within its gate shows that
-// the parallax it leaves unmodelled is small against the gate, which bounds the bias it takes;
-// near structure it keeps fewer, and the general motion stays.
+// pairs was 0.14-0.17 deg off. A pure rotation that keeps most of those inliers within its gate
+// shows that the parallax it leaves unmodelled is small against the gate, which bounds the bias it
+// takes; near structure it keeps fewer, and the general motion stays.
 bool preferPureOnWeakSupport(FrameMatches& matches, const CandidateVote& vote, double threshold, int iterations,
                              RefinementChoice* choice) {
   const RefinedRotation& winner = choice->winner;
