@@ -757,44 +757,46 @@ TEST(CandidateRefinement, PreviousMotionStartsOnlyWhereTheWinnerMovesElsewhere) 
   EXPECT_EQ(choice.contenders.size(), contenders);
 }
 
-// The final choice of model where a general motion rests on few inliers: the pure rotation takes
-// its place where it keeps most of them (parallax within the gate), never near structure (parallax
-// of degrees), never over a well-supported general motion, and a pure winner is left alone.
+// The final choice of model where a general motion's fit is noise-limited: the pure rotation takes
+// its place where it keeps most of its inliers (parallax within the gate), never near structure
+// (parallax of degrees), never over a general motion fitted tightly, and a pure winner is left alone.
 TEST(CandidateRefinement, WeakSupportPrefersThePureRotationOnlyWhereItKeepsMostInliers) {
   const Matrix3d R = vg::rotationFromYawPitchRoll(0.8 * kDeg, 0.2 * kDeg, 0.1 * kDeg);
   const double threshold = 0.1 * kDeg;
+  const double noisy = 1.2 * threshold / vg::kGateSigmas, sharp = 0.8 * threshold / vg::kGateSigmas;
   const vg::CandidateVote no_candidates;
-  const auto choiceFor = [&](const Vector3d& t, double near, double far, int general_inliers,
+  const auto choiceFor = [&](const Vector3d& t, double near, double far, double residual_sigma,
                              vg::FrameMatches* matches) {
     const Scene s = makeScene(R, t, 100, 0.5e-3, 0.0, near, far, 31);
     matches->assign(s.previous, s.current);
     vg::RefinementChoice choice;
-    // A general motion 0.2 deg off along a lateral valley, as a few dozen noisy matches leave it.
-    choice.winner = refinedAt(vg::so3Exp(Vector3d(0.0, 0.2, 0.0) * kDeg) * R, Vector3d(1, 0, 0), general_inliers, 1e9);
+    // A general motion 0.2 deg off along a lateral valley, as noisy matches leave it.
+    choice.winner = refinedAt(vg::so3Exp(Vector3d(0.0, 0.2, 0.0) * kDeg) * R, Vector3d(1, 0, 0), 90, 1e9);
+    choice.winner.residual_sigma = residual_sigma;
     choice.contenders.push_back(choice.winner);
     return choice;
   };
   vg::FrameMatches matches;
   // A hand's 2 mm among things 2-10 m away: parallax under the gate, the pure rotation keeps all.
-  vg::RefinementChoice weak = choiceFor(Vector3d(0.002, 0, 0), 2, 10, 90, &matches);
-  ASSERT_LT(weak.winner.inliers, vg::kWeakSupportInliers);
+  vg::RefinementChoice weak = choiceFor(Vector3d(0.002, 0, 0), 2, 10, noisy, &matches);
   EXPECT_TRUE(vg::preferPureOnWeakSupport(matches, no_candidates, threshold, 10, &weak));
   EXPECT_TRUE(weak.winner.pure_rotation);
   EXPECT_GT(weak.winner.inliers, vg::kPureKeepsShare * 90);
   EXPECT_LT(vg::rotationAngleBetween(weak.winner.rotation, R), 0.05 * kDeg);
   ASSERT_EQ(weak.contenders.size(), 2u);
   EXPECT_FALSE(weak.contenders.front().pure_rotation) << "the general motion stays a contender";
-  // The same support but 30 cm among things 2-10 m away: degrees of parallax, the general motion stays.
-  vg::RefinementChoice near = choiceFor(Vector3d(0.3, 0, 0), 2, 10, 90, &matches);
+  // As noisy, but 30 cm among things 2-10 m away: degrees of parallax, the general motion stays.
+  vg::RefinementChoice near = choiceFor(Vector3d(0.3, 0, 0), 2, 10, noisy, &matches);
   EXPECT_FALSE(vg::preferPureOnWeakSupport(matches, no_candidates, threshold, 10, &near));
   EXPECT_FALSE(near.winner.pure_rotation);
   EXPECT_EQ(near.contenders.size(), 1u);
-  // A general motion on enough inliers is not judged, nor a pure winner.
-  vg::RefinementChoice supported = choiceFor(Vector3d(0.002, 0, 0), 2, 10, vg::kWeakSupportInliers, &matches);
-  EXPECT_FALSE(vg::preferPureOnWeakSupport(matches, no_candidates, threshold, 10, &supported));
-  EXPECT_FALSE(supported.winner.pure_rotation);
-  vg::RefinementChoice pure = choiceFor(Vector3d(0.002, 0, 0), 2, 10, 90, &matches);
+  // A general motion fitted well within the gate is not judged, nor a pure winner.
+  vg::RefinementChoice tight = choiceFor(Vector3d(0.002, 0, 0), 2, 10, sharp, &matches);
+  EXPECT_FALSE(vg::preferPureOnWeakSupport(matches, no_candidates, threshold, 10, &tight));
+  EXPECT_FALSE(tight.winner.pure_rotation);
+  vg::RefinementChoice pure = choiceFor(Vector3d(0.002, 0, 0), 2, 10, noisy, &matches);
   pure.winner = refinedAt(R, Vector3d::Zero(), 90, 1e9);
+  pure.winner.residual_sigma = noisy;
   EXPECT_FALSE(vg::preferPureOnWeakSupport(matches, no_candidates, threshold, 10, &pure));
   EXPECT_EQ(pure.contenders.size(), 1u);
   EXPECT_STREQ(vg::votePartName(vg::VotePart::kWeakSupport), "weak_support");

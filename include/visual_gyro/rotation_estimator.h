@@ -155,7 +155,7 @@ struct VoteDiagnostics {
   /// winner's or a contender's rotation with another translation direction, when the winner
   /// explained too few matches), "descent" (a refinement from the end of a descent on the
   /// truncated cost, under the same condition), or "weak_support" (the pure rotation that replaced
-  /// a general motion resting on few inliers); "" when none was verified.
+  /// a general motion whose fit the matches' noise limits); "" when none was verified.
   std::string winner_source;
   int candidates_verified = 0;  ///< candidate rotations checked against all matches
   /// The rotation/translation valley of a close scene was searched (general motion with a
@@ -171,8 +171,9 @@ struct VoteDiagnostics {
   /// The refinement from the end of the descent on the truncated cost (run after the restarts,
   /// under the same condition) won.
   bool descent_won = false;
-  /// A general-motion winner resting on few inliers was replaced by the pure rotation, which keeps
-  /// most of them (the final choice of model where the support is weak).
+  /// A general-motion winner whose fit the matches' noise limits (its residual sigma reaches the
+  /// gate's) was replaced by the pure rotation, which keeps most of its inliers (the final choice
+  /// of model where the support is weak).
   bool weak_support_pure = false;
   int rotation_inliers = 0;     ///< winner's matches explained by a pure rotation
   int epipolar_inliers = 0;     ///< winner's matches explained by rotation + translation
@@ -278,7 +279,7 @@ enum class VotePart : uint8_t {
   kRowSkew,           ///< a pure rotation's change down the image (a rolling shutter's)
   kTranslationSpread, ///< a pure rotation's covariance covering what an unmodelled translation moves
   kContenderMean,     ///< the estimate as the likelihood-weighted mean of the refinements of its model
-  kWeakSupport,       ///< a pure rotation for a general motion resting on few inliers, where it keeps most
+  kWeakSupport,       ///< a pure rotation for a general motion whose fit is noise-limited, where it keeps most
   kCount
 };
 /// The part's name in `vote-without-<name>` ("wide_vote", "prior_candidate", ...).

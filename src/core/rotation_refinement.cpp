@@ -211,7 +211,7 @@ int countEpipolarInliers(const FrameMatches& m, const Eigen::Vector3d& t, double
   return count;
 }
 
-// 3.5 robust sigmas (1.4826 MAD) of the residuals below the threshold, clamped to
+// kGateSigmas robust sigmas (1.4826 MAD) of the residuals below the threshold, clamped to
 // [threshold / 8, threshold], at the rotation of the last rotateAll. With t == nullptr the residual
 // is the pure-rotation one |b x R b'|. The median is taken of the squared residuals (the same
 // match's), which need no square root per match.
@@ -235,7 +235,7 @@ double adaptiveGate(FrameMatches& m, const Eigen::Vector3d* t, double threshold)
   const double median = passes::selectKth(squared.data(), squared.size(), squared.size() / 2);
   // The 2-D pure-rotation residual's median is ~1.18 sigma, the 1-D |r|'s 0.67 sigma.
   const double sigma = std::sqrt(median) / (t != nullptr ? 0.6745 : 1.1774);
-  return std::clamp(3.5 * sigma, threshold / 8.0, threshold);
+  return std::clamp(kGateSigmas * sigma, threshold / 8.0, threshold);
 }
 
 // The covariance sigma^2 A^-1 of a fit's rotation (A's first three parameters; the others, such as
@@ -436,7 +436,7 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   // Levenberg-Marquardt step compares costs over the same matches.
   // The first round's wider gate lets a start rotation that is off by a few thresholds (a biased
   // rotation-only vote) still gather its true inliers.
-  // Later rounds shrink the gate to 3.5 robust sigmas of the inliers' residuals (never above the
+  // Later rounds shrink the gate to kGateSigmas robust sigmas of the inliers' residuals (never above the
   // threshold): under forward motion a wrong match near the epipole satisfies the epipolar
   // constraint almost as well as a right one, and the yaw/lateral-translation ambiguity turns the
   // few that slip through a fixed gate into a visible rotation bias.

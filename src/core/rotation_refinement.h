@@ -103,6 +103,11 @@ VerifiedRotation verifyRotation(FrameMatches& matches, const Eigen::Matrix3d& ro
 double fittedTranslationCost(FrameMatches& matches, const Eigen::Matrix3d& rotation, Eigen::Vector3d* translation,
                              double threshold, int refits);
 
+/// The robust standard deviations of the residuals that a refinement's adaptive inlier gate spans
+/// (clamped to [threshold / 8, threshold]). A fit whose residual sigma times this reaches the
+/// threshold is limited by the noise of its matches: its gate can narrow no further.
+constexpr double kGateSigmas = 3.5;
+
 /// The refined rotation with its uncertainty.
 struct RefinedRotation {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
