@@ -329,8 +329,8 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
 // A translation's two parameters fitted to noisy matches leave the rotation loose along the
 // rotation/translation valley, the looser the noisier they are: where the general fit's residual
 // spread reaches the gate (dim, blurred hand-held rooms; an object moving through the view, which
-// the translation takes in as parallax), its rotation was 0.19 deg off (RMSE) on a hand-held room of
-// some 600 noisy matches a pair, where the pure rotation was 0.14 deg off. A pure rotation that
+// the translation takes in as parallax), its rotation was 0.19 deg off (RMSE) on a hand-held room
+// of some 600 noisy matches a pair, where the pure rotation was 0.14 deg off. A pure rotation that
 // keeps most of the general motion's inliers within its gate shows that the parallax it leaves
 // unmodelled is small against the gate, which bounds the bias it takes; near structure it keeps
 // fewer, and the general motion stays. A count of inliers does not tell such pairs: the rooms'

@@ -436,10 +436,10 @@ RefinedRotation refineGeneral(FrameMatches& m, Eigen::Matrix3d R, Eigen::Vector3
   // Levenberg-Marquardt step compares costs over the same matches.
   // The first round's wider gate lets a start rotation that is off by a few thresholds (a biased
   // rotation-only vote) still gather its true inliers.
-  // Later rounds shrink the gate to kGateSigmas robust sigmas of the inliers' residuals (never above the
-  // threshold): under forward motion a wrong match near the epipole satisfies the epipolar
-  // constraint almost as well as a right one, and the yaw/lateral-translation ambiguity turns the
-  // few that slip through a fixed gate into a visible rotation bias.
+  // Later rounds shrink the gate to kGateSigmas robust sigmas of the inliers' residuals (never
+  // above the threshold): under forward motion a wrong match near the epipole satisfies the
+  // epipolar constraint almost as well as a right one, and the yaw/lateral-translation ambiguity
+  // turns the few that slip through a fixed gate into a visible rotation bias.
   const double schedule[] = {6.0 * threshold, 2.0 * threshold, 0.0};
   const int rounds = static_cast<int>(sizeof(schedule) / sizeof(schedule[0]));
   for (int round = 0; round < rounds; ++round) {
