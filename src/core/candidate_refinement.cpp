@@ -158,7 +158,7 @@ class ValleySteps {
 // more tries at one only raise the odds that a translation chosen among wrong matches clears the
 // margin (a dim, blurred room's pure frame of 100 matches: 69 inliers against a restart's 82).
 bool generalWinnerExplainsTooFew(const FrameMatches& matches, const RefinedRotation& winner) {
-  if (winner.pure_rotation || winner.translation.isZero()) return false;
+  if (!isGeneralMotion(winner)) return false;
   return winner.inliers < kRestartInlierFraction * static_cast<double>(matches.size());
 }
 
@@ -168,7 +168,7 @@ bool generalWinnerExplainsTooFew(const FrameMatches& matches, const RefinedRotat
 // nearest the truth 17 % cheaper than the one every candidate reached, 0.3 deg off), which the
 // share of matches explained never tells apart.
 bool generalWinnerTranslationIsWeak(const RefinedRotation& winner) {
-  if (winner.pure_rotation || winner.translation.isZero()) return false;
+  if (!isGeneralMotion(winner)) return false;
   return winner.translation_sigma > kWeakTranslationSigmaDeg * kDeg;
 }
 
@@ -250,7 +250,7 @@ bool refineFromPreviousMotion(FrameMatches& matches, const Eigen::Matrix3d& prio
                               RefinementChoice* choice) {
   const RefinedRotation& winner = choice->winner;
   const bool same_direction =
-      !winner.pure_rotation && !winner.translation.isZero() &&
+      isGeneralMotion(winner) &&
       std::abs(winner.translation.normalized().dot(previous_translation)) > std::cos(kSameTranslationDeg * kDeg);
   if (same_direction) return false;
   return choice->challenge(refineMotion(matches, prior_rotation, previous_translation, threshold, iterations));
@@ -263,7 +263,7 @@ bool searchValley(FrameMatches& matches, const Eigen::Vector3d& view, int best_v
                   int iterations, uint64_t seed, RefinementChoice* choice, bool* moved) {
   *moved = false;
   const RefinedRotation& winner = choice->winner;
-  if (winner.pure_rotation || winner.translation.isZero()) return false;
+  if (!isGeneralMotion(winner)) return false;
   const std::vector<Eigen::Vector3d> axes = valleyAxes(winner, view, best_verified);
   if (axes.empty()) return false;
   ValleySteps steps(matches, winner, threshold, seed);
@@ -338,7 +338,7 @@ bool descendTruncatedCost(FrameMatches& matches, double threshold, int iteration
 bool preferPureOnWeakSupport(FrameMatches& matches, const CandidateVote& vote, double threshold, int iterations,
                              RefinementChoice* choice) {
   const RefinedRotation& winner = choice->winner;
-  if (winner.pure_rotation || winner.translation.isZero()) return false;
+  if (!isGeneralMotion(winner)) return false;
   if (!(kGateSigmas * winner.residual_sigma >= threshold)) return false;
   VerifiedRotation start;  // no translation: a pure-rotation refinement
   start.rotation = winner.rotation;

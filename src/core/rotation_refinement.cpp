@@ -765,7 +765,7 @@ inline double sampsonScale(const Eigen::Vector3d& p, const Eigen::Vector3d& rc, 
 void squaredResidualsOf(FrameMatches& m, const RefinedRotation& refined) {
   const size_t n = m.size();
   FrameMatches::Scratch& s = m.scratch;
-  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  const bool pure = !isGeneralMotion(refined);
   rotateAll(m, refined.rotation);
   s.residuals.resize(n);
   passes::passes().residuals2(matchArrays(m), n, pure ? nullptr : refined.translation.data(), s.residuals.data());
@@ -883,7 +883,7 @@ bool fitPureRowSkew(FrameMatches& m, double threshold, Eigen::Matrix3d* R, Eigen
 // The full inlier gate of `fit` [rad]: the 2-D pure-rotation residual's is kRotationGateScale times
 // the epipolar one's.
 double fullGate(const RefinedRotation& fit, double threshold) {
-  const bool pure = fit.pure_rotation || fit.translation.isZero();
+  const bool pure = !isGeneralMotion(fit);
   return pure ? kRotationGateScale * threshold : threshold;
 }
 
@@ -923,7 +923,7 @@ struct GroupSystems {
 GroupSystems groupSystems(const FrameMatches& m, const RefinedRotation& fit, double threshold,
                           const std::vector<int>& group, int groups, bool fit_skew) {
   GroupSystems out;
-  const bool pure = fit.pure_rotation || fit.translation.isZero();
+  const bool pure = !isGeneralMotion(fit);
   out.dim = pure ? 6 : 8;
   out.fit_skew = fit_skew;
   if (pure) {
@@ -1109,7 +1109,7 @@ JackknifeSpread refitJackknifeSpread(FrameMatches& m, FrameMatches* rest, const 
   spatialGroups(m, k, &order, &group);
   const int groups = k * k;
   std::array<Eigen::Vector3d, kMaxGroups> moved;
-  const bool pure = refined.pure_rotation || refined.translation.isZero();
+  const bool pure = !isGeneralMotion(refined);
   for (int g = 0; g < groups; ++g) {
     rest->assignWithout(m, group, g);
     RefinedRotation again = pure ? refinePureRotation(*rest, refined.rotation, threshold, iterations)

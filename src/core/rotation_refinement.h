@@ -133,6 +133,9 @@ struct RefinedRotation {
   int matches = 0;  ///< the frame's matches, those the fit chose its inliers among
 };
 
+/// True when `r` is a general motion: refined with a translation, not as a pure rotation.
+inline bool isGeneralMotion(const RefinedRotation& r) { return !r.pure_rotation && !r.translation.isZero(); }
+
 /// True when refinement `a` explains the matches better than `b`: a lower truncated cost under the
 /// same model (a count of inliers saturates when the gate is wide against the residuals, as it is
 /// along the rotation/translation valley of a close scene, where the wrong rotation and the right
