@@ -310,6 +310,12 @@ TEST_F(EvaluateBadInput, OutOfRangeOptionsAreNamed) {
   out = evaluate(root_ + "/good --set min_dt=-1", &status);
   EXPECT_EQ(status, 2) << out;
   EXPECT_TRUE(contains(out, "min_dt")) << out;
+  out = evaluate(root_ + "/good --gain-jitter 1", &status);
+  EXPECT_EQ(status, 2) << out;
+  EXPECT_TRUE(contains(out, "--gain-jitter")) << out;
+  out = evaluate(root_ + "/good --gain-jitter 0.2", &status);
+  EXPECT_EQ(status, 0) << out;
+  EXPECT_EQ(vg::test::jsonNumber(out, "gain_jitter"), 0.2) << out;
   const std::string csv = root_ + "/implausible.csv";
   out = evaluate(root_ + "/good --set max_rate_dps=5 --csv " + csv, &status);  // the views turn faster
   EXPECT_EQ(status, 0) << out;

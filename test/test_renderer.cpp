@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -382,6 +383,36 @@ TEST(ImageDegradation, EachDegradationDoesWhatItSays) {
   EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
   EXPECT_GT(cv::norm(a, c, cv::NORM_INF), 0.0);
 
+  // Gain jitter: every grey level times one factor per image, within the jitter; the same seed
+  // draws the same factor, other seeds others; the noise's draws stay as they were.
+  ImageDegradation stepping;
+  stepping.gain_jitter = 0.25;
+  EXPECT_TRUE(stepping.any());
+  std::vector<double> gains;
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    cv::Mat stepped = degradeImage(image, stepping, seed), expected;
+    const double gain = cv::mean(stepped)[0] / mean[0];
+    image.convertTo(expected, CV_8UC1, gain);  // rounds and saturates alike
+    EXPECT_LE(cv::norm(stepped, expected, cv::NORM_INF), 1.0) << "seed " << seed;
+    EXPECT_GE(gain, 0.75 - 0.01);
+    EXPECT_LE(gain, 1.25 + 0.01);
+    gains.push_back(gain);
+  }
+  EXPECT_GT(*std::max_element(gains.begin(), gains.end()) - *std::min_element(gains.begin(), gains.end()), 0.1);
+  EXPECT_EQ(cv::norm(degradeImage(image, stepping, 3), degradeImage(image, stepping, 3), cv::NORM_INF), 0.0);
+  // On a darker image, which neither end clips, the noise on top of the gain is the noise drawn
+  // without it, up to rounding.
+  cv::Mat darker;
+  image.convertTo(darker, CV_8UC1, 0.6);
+  ImageDegradation stepping_noisy = stepping;
+  stepping_noisy.noise_sigma = 3.0;
+  cv::Mat with_gain, gain_only, noise_alone;
+  cv::subtract(degradeImage(darker, stepping_noisy, 5), degradeImage(darker, stepping, 5), with_gain, cv::noArray(),
+               CV_32F);
+  cv::subtract(degradeImage(darker, noisy, 5), darker, noise_alone, cv::noArray(), CV_32F);
+  EXPECT_GT(cv::norm(degradeImage(darker, stepping, 5), darker, cv::NORM_INF), 1.0);  // the gain moved the levels
+  EXPECT_LE(cv::norm(with_gain, noise_alone, cv::NORM_INF), 1.5 + 1e-6);
+
   // JPEG: a round trip at low quality changes the noise image, but keeps it close.
   ImageDegradation compressed;
   compressed.jpeg_quality = 20;
@@ -393,6 +424,9 @@ TEST(ImageDegradation, EachDegradationDoesWhatItSays) {
   ImageDegradation bad;
   bad.contrast = 0.0;
   EXPECT_THROW(degradeImage(image, bad, 1), std::invalid_argument);
+  bad = ImageDegradation();
+  bad.gain_jitter = 0.95;
+  EXPECT_THROW(checkDegradation(bad, "test"), std::invalid_argument);
   bad = ImageDegradation();
   bad.jpeg_quality = 101;
   EXPECT_THROW(checkDegradation(bad, "test"), std::invalid_argument);

@@ -74,6 +74,8 @@ struct RenderSettings {
 /// renderer applies them to what it renders (RenderSettings' fields); the evaluation applies them
 /// to real footage (`evaluate --contrast/--noise/--jpeg`).
 struct ImageDegradation {
+  double gain_jitter = 0.0;   ///< each image's grey levels times 1 + u, u uniform in [-gain_jitter, gain_jitter], drawn
+                              ///< from the image's seed (an automatic exposure stepping between frames), in [0, 0.9]
   double contrast = 1.0;      ///< grey levels scaled about the image mean by this factor, in (0, 100]
   double blur_px = 0.0;       ///< line blur this long [px] along blur_direction, in [0, 200]; 0 = none
   Eigen::Vector2d blur_direction = Eigen::Vector2d::UnitX();  ///< image x right, y down; unit length
@@ -81,7 +83,9 @@ struct ImageDegradation {
   int jpeg_quality = 0;       ///< JPEG-compressed and decoded at this quality (1..100); 0 = none
 
   /// True when at least one degradation changes an image.
-  bool any() const { return contrast != 1.0 || blur_px > 0.0 || noise_sigma > 0.0 || jpeg_quality > 0; }
+  bool any() const {
+    return gain_jitter > 0.0 || contrast != 1.0 || blur_px > 0.0 || noise_sigma > 0.0 || jpeg_quality > 0;
+  }
 };
 
 /// Throws std::invalid_argument, its message starting with `who`, when a value of `degradation`
@@ -89,7 +93,8 @@ struct ImageDegradation {
 void checkDegradation(const ImageDegradation& degradation, const std::string& who);
 
 /// `image` (CV_8UC1, or CV_32FC1 grey levels) degraded by `degradation`: rounded to CV_8UC1 after
-/// the noise, whose normal draws come from `noise_seed` pixel by pixel in row order. Throws
+/// the noise, whose normal draws come from `noise_seed` pixel by pixel in row order; the gain's
+/// draw comes from a stream of its own, so that it leaves the noise's draws as they are. Throws
 /// std::invalid_argument for another image type or a value out of range.
 cv::Mat degradeImage(const cv::Mat& image, const ImageDegradation& degradation, uint64_t noise_seed);
 

@@ -174,8 +174,10 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
   if (run.stride > 1) out << ", stride " << run.stride;
   if (run.scale != 1.0) out << ", images downscaled by " << fmt(run.scale, 3);
   if (run.degradation.any()) {
-    out << ", images degraded (contrast " << fmt(run.degradation.contrast, 2) << ", noise "
-        << fmt(run.degradation.noise_sigma, 1) << " grey levels";
+    out << ", images degraded (";
+    if (run.degradation.gain_jitter > 0) out << "gain 1 +- " << fmt(run.degradation.gain_jitter, 2) << ", ";
+    out << "contrast " << fmt(run.degradation.contrast, 2) << ", noise " << fmt(run.degradation.noise_sigma, 1)
+        << " grey levels";
     if (run.degradation.jpeg_quality > 0) out << ", JPEG " << run.degradation.jpeg_quality;
     out << ")";
   }
@@ -252,6 +254,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("moving_region", run.moving_region)
       .add("moving_deg", run.moving_deg)
       .add("stride", run.stride)
+      .add("gain_jitter", run.degradation.gain_jitter)
       .add("contrast", run.degradation.contrast)
       .add("noise", run.degradation.noise_sigma)
       .add("jpeg", run.degradation.jpeg_quality)

@@ -964,6 +964,8 @@ double presetRateHz(RenderPreset preset) {
 void checkDegradation(const ImageDegradation& d, const std::string& who) {
   if (!(std::isfinite(d.noise_sigma) && d.noise_sigma >= 0))
     throw std::invalid_argument(who + ": noise sigma must be finite and >= 0");
+  if (!(std::isfinite(d.gain_jitter) && d.gain_jitter >= 0 && d.gain_jitter <= 0.9))
+    throw std::invalid_argument(who + ": gain jitter must be in [0, 0.9]");
   if (!(std::isfinite(d.contrast) && d.contrast > 0 && d.contrast <= 100))
     throw std::invalid_argument(who + ": contrast must be in (0, 100]");
   if (!(std::isfinite(d.blur_px) && d.blur_px >= 0 && d.blur_px <= 200))
@@ -979,7 +981,11 @@ cv::Mat degradeImage(const cv::Mat& image, const ImageDegradation& d, uint64_t n
   if (image.type() != CV_8UC1 && image.type() != CV_32FC1)
     throw std::invalid_argument("image degradation: the image must be CV_8UC1 or CV_32FC1");
   cv::Mat scene;
-  image.convertTo(scene, CV_32F);
+  // An exposure's gain scales the light the sensor gathers, before its noise; the bright end then
+  // saturates at the rounding below.
+  double gain = 1.0;
+  if (d.gain_jitter > 0.0) gain += Rng(mixSeed(noise_seed, 0x4741494Eull)).uniform(-d.gain_jitter, d.gain_jitter);
+  image.convertTo(scene, CV_32F, gain);
   // Contrast and blur act on the noiseless grey levels, as a dimmer or moving scene would.
   if (d.contrast != 1.0) {
     const double mean = cv::mean(scene)[0];

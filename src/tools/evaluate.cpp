@@ -45,7 +45,10 @@ const char* const kUsage =
     "  --moving-region F      move the fraction F of the matches (those furthest right) as one\n"
     "                         independent object, turned by --moving-deg D a pair (default 0.5)\n"
     "  --max-matches N        use at most N matches per pair (a deterministic random subset)\n"
-    "  --contrast F           degrade every image as it is read: grey levels scaled about the\n"
+    "  --gain-jitter F        degrade every image as it is read: grey levels times 1 + u, u drawn\n"
+    "                         per image uniformly in [-F, F], 0 <= F <= 0.9 (an automatic\n"
+    "                         exposure stepping between frames), then\n"
+    "  --contrast F           grey levels scaled about the\n"
     "                         image mean by F (dimmer footage: F < 1), then\n"
     "  --noise SIGMA          Gaussian pixel noise [grey levels] added, then\n"
     "  --jpeg Q               a JPEG round trip at quality Q, 1..100 (as render_sequence's)\n"
@@ -148,6 +151,8 @@ Options parseOptions(int argc, char** argv) {
     } else if (args.is("--moving-deg")) {
       o.pairs.moving_deg = args.doubleValue(-90.0, 90.0);
       moving_deg_given = true;
+    } else if (args.is("--gain-jitter")) {
+      o.pairs.degradation.gain_jitter = args.doubleValue(0.0, 0.9);
     } else if (args.is("--contrast")) {
       o.pairs.degradation.contrast = args.doubleValue(1e-3, 100.0);
     } else if (args.is("--noise")) {
