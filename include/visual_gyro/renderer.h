@@ -72,10 +72,10 @@ struct RenderSettings {
 
 /// Degradations of one image, applied in this order: contrast, motion blur, noise, JPEG. The
 /// renderer applies them to what it renders (RenderSettings' fields); the evaluation applies them
-/// to real footage (`evaluate --contrast/--noise/--jpeg`).
+/// to real footage (`evaluate --gain-jitter/--contrast/--noise/--jpeg`).
 struct ImageDegradation {
-  double gain_jitter = 0.0;   ///< each image's grey levels times 1 + u, u uniform in [-gain_jitter, gain_jitter], drawn
-                              ///< from the image's seed (an automatic exposure stepping between frames), in [0, 0.9]
+  double gain_jitter = 0.0;   ///< grey levels times 1 + u, u uniform in [-gain_jitter, gain_jitter], one draw
+                              ///< per image (an automatic exposure stepping between frames), in [0, 0.9]
   double contrast = 1.0;      ///< grey levels scaled about the image mean by this factor, in (0, 100]
   double blur_px = 0.0;       ///< line blur this long [px] along blur_direction, in [0, 200]; 0 = none
   Eigen::Vector2d blur_direction = Eigen::Vector2d::UnitX();  ///< image x right, y down; unit length
