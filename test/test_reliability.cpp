@@ -313,9 +313,12 @@ TEST_F(EvaluateBadInput, OutOfRangeOptionsAreNamed) {
   out = evaluate(root_ + "/good --gain-jitter 1", &status);
   EXPECT_EQ(status, 2) << out;
   EXPECT_TRUE(contains(out, "--gain-jitter")) << out;
-  out = evaluate(root_ + "/good --gain-jitter 0.2", &status);
+  out = evaluate(root_ + "/good --gain-jitter 0.2 --stuck-pixels 30", &status);
   EXPECT_EQ(status, 0) << out;
   EXPECT_EQ(vg::test::jsonNumber(out, "gain_jitter"), 0.2) << out;
+  EXPECT_EQ(vg::test::jsonNumber(out, "stuck_pixels"), 30.0) << out;
+  out = evaluate(root_ + "/good --stuck-pixels -1", &status);
+  EXPECT_EQ(status, 2) << out;
   const std::string csv = root_ + "/implausible.csv";
   out = evaluate(root_ + "/good --set max_rate_dps=5 --csv " + csv, &status);  // the views turn faster
   EXPECT_EQ(status, 0) << out;

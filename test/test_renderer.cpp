@@ -413,6 +413,19 @@ TEST(ImageDegradation, EachDegradationDoesWhatItSays) {
   EXPECT_GT(cv::norm(degradeImage(darker, stepping, 5), darker, cv::NORM_INF), 1.0);  // the gain moved the levels
   EXPECT_LE(cv::norm(with_gain, noise_alone, cv::NORM_INF), 1.5 + 1e-6);
 
+  // Stuck pixels: at most that many pixels turn white, the same ones whatever the seed, and only
+  // they change.
+  ImageDegradation defective;
+  defective.stuck_pixels = 40;
+  EXPECT_TRUE(defective.any());
+  const cv::Mat stuck_a = degradeImage(image, defective, 1), stuck_b = degradeImage(image, defective, 2);
+  EXPECT_EQ(cv::norm(stuck_a, stuck_b, cv::NORM_INF), 0.0);
+  cv::Mat changed = stuck_a != image;
+  EXPECT_GT(cv::countNonZero(changed), 30);  // 40 draws over 19 200 pixels, the image below 255
+  EXPECT_LE(cv::countNonZero(changed), 40);
+  cv::Mat white = stuck_a == 255;
+  EXPECT_EQ(cv::countNonZero(changed & ~white), 0);
+
   // JPEG: a round trip at low quality changes the noise image, but keeps it close.
   ImageDegradation compressed;
   compressed.jpeg_quality = 20;
@@ -424,6 +437,9 @@ TEST(ImageDegradation, EachDegradationDoesWhatItSays) {
   ImageDegradation bad;
   bad.contrast = 0.0;
   EXPECT_THROW(degradeImage(image, bad, 1), std::invalid_argument);
+  bad = ImageDegradation();
+  bad.stuck_pixels = -1;
+  EXPECT_THROW(checkDegradation(bad, "test"), std::invalid_argument);
   bad = ImageDegradation();
   bad.gain_jitter = 0.95;
   EXPECT_THROW(checkDegradation(bad, "test"), std::invalid_argument);

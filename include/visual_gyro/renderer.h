@@ -72,7 +72,7 @@ struct RenderSettings {
 
 /// Degradations of one image, applied in this order: contrast, motion blur, noise, JPEG. The
 /// renderer applies them to what it renders (RenderSettings' fields); the evaluation applies them
-/// to real footage (`evaluate --gain-jitter/--contrast/--noise/--jpeg`).
+/// to real footage (`evaluate --gain-jitter/--contrast/--noise/--stuck-pixels/--jpeg`).
 struct ImageDegradation {
   double gain_jitter = 0.0;   ///< grey levels times 1 + u, u uniform in [-gain_jitter, gain_jitter], one draw
                               ///< per image (an automatic exposure stepping between frames), in [0, 0.9]
@@ -80,11 +80,14 @@ struct ImageDegradation {
   double blur_px = 0.0;       ///< line blur this long [px] along blur_direction, in [0, 200]; 0 = none
   Eigen::Vector2d blur_direction = Eigen::Vector2d::UnitX();  ///< image x right, y down; unit length
   double noise_sigma = 0.0;   ///< Gaussian pixel noise [grey levels], >= 0
+  int stuck_pixels = 0;       ///< this many pixels stuck at white, after the noise and before the JPEG, at the
+                              ///< same places in every image of a size (a sensor's hot pixels), in [0, 100000]
   int jpeg_quality = 0;       ///< JPEG-compressed and decoded at this quality (1..100); 0 = none
 
   /// True when at least one degradation changes an image.
   bool any() const {
-    return gain_jitter > 0.0 || contrast != 1.0 || blur_px > 0.0 || noise_sigma > 0.0 || jpeg_quality > 0;
+    return gain_jitter > 0.0 || contrast != 1.0 || blur_px > 0.0 || noise_sigma > 0.0 || stuck_pixels > 0 ||
+           jpeg_quality > 0;
   }
 };
 

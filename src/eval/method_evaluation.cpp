@@ -178,6 +178,7 @@ std::string summaryText(const RunDescription& run, const MethodSummary& s) {
     if (run.degradation.gain_jitter > 0) out << "gain 1 +- " << fmt(run.degradation.gain_jitter, 2) << ", ";
     out << "contrast " << fmt(run.degradation.contrast, 2) << ", noise " << fmt(run.degradation.noise_sigma, 1)
         << " grey levels";
+    if (run.degradation.stuck_pixels > 0) out << ", " << run.degradation.stuck_pixels << " stuck pixels";
     if (run.degradation.jpeg_quality > 0) out << ", JPEG " << run.degradation.jpeg_quality;
     out << ")";
   }
@@ -257,6 +258,7 @@ std::string summaryJson(const RunDescription& run, const MethodSummary& s) {
       .add("gain_jitter", run.degradation.gain_jitter)
       .add("contrast", run.degradation.contrast)
       .add("noise", run.degradation.noise_sigma)
+      .add("stuck_pixels", run.degradation.stuck_pixels)
       .add("jpeg", run.degradation.jpeg_quality)
       .add("scale", run.scale)
       .add("true_rot_mean_deg", a.true_rotation_mean_deg)

@@ -972,6 +972,8 @@ void checkDegradation(const ImageDegradation& d, const std::string& who) {
     throw std::invalid_argument(who + ": blur must be in [0, 200] px");
   if (!(d.blur_direction.allFinite() && std::abs(d.blur_direction.norm() - 1.0) < 1e-6))
     throw std::invalid_argument(who + ": blur direction must be a unit vector");
+  if (d.stuck_pixels < 0 || d.stuck_pixels > 100000)
+    throw std::invalid_argument(who + ": stuck pixels must be in [0, 100000]");
   if (d.jpeg_quality < 0 || d.jpeg_quality > 100)
     throw std::invalid_argument(who + ": JPEG quality must be in 1..100 (0 = no JPEG)");
 }
@@ -1004,6 +1006,13 @@ cv::Mat degradeImage(const cv::Mat& image, const ImageDegradation& d, uint64_t n
       const double v = row[x] + (d.noise_sigma > 0 ? d.noise_sigma * noise.normal() : 0.0);
       to[x] = static_cast<uint8_t>(std::clamp(v, 0.0, 255.0) + 0.5);
     }
+  }
+  // A sensor's defects belong to the sensor: the same places in every image, whatever the seed.
+  Rng stuck(mixSeed(static_cast<uint64_t>(out.cols) << 32 | static_cast<uint64_t>(out.rows), 0x535455434Bull));
+  for (int k = 0; k < d.stuck_pixels; ++k) {
+    const int x = static_cast<int>(stuck.next() % static_cast<uint64_t>(out.cols));
+    const int y = static_cast<int>(stuck.next() % static_cast<uint64_t>(out.rows));
+    out.at<uint8_t>(y, x) = 255;
   }
   if (d.jpeg_quality > 0) {
     std::vector<uchar> bytes;

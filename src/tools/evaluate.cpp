@@ -51,6 +51,8 @@ const char* const kUsage =
     "  --contrast F           grey levels scaled about the image mean by F (dimmer footage:\n"
     "                         F < 1), then\n"
     "  --noise SIGMA          Gaussian pixel noise [grey levels] added, then\n"
+    "  --stuck-pixels N       N pixels stuck at white, at the same places in every image (a\n"
+    "                         sensor's hot pixels), then\n"
     "  --jpeg Q               a JPEG round trip at quality Q, 1..100 (as render_sequence's)\n"
     "  --scale F              downscale every image by F, 0 < F <= 1, as it is read (area\n"
     "                         interpolation, before the degradations; the camera's fx, fy, cx, cy\n"
@@ -157,6 +159,8 @@ Options parseOptions(int argc, char** argv) {
       o.pairs.degradation.contrast = args.doubleValue(1e-3, 100.0);
     } else if (args.is("--noise")) {
       o.pairs.degradation.noise_sigma = args.doubleValue(0.0, 255.0);
+    } else if (args.is("--stuck-pixels")) {
+      o.pairs.degradation.stuck_pixels = static_cast<int>(args.intValue(0, 100000));
     } else if (args.is("--jpeg")) {
       o.pairs.degradation.jpeg_quality = static_cast<int>(args.intValue(1, 100));
     } else if (args.is("--scale")) {
