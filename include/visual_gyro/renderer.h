@@ -70,7 +70,8 @@ struct RenderSettings {
   }
 };
 
-/// Degradations of one image, applied in this order: contrast, motion blur, noise, JPEG. The
+/// Degradations of one image, applied in this order: gain, contrast, motion blur, noise, stuck
+/// pixels, JPEG. The
 /// renderer applies them to what it renders (RenderSettings' fields); the evaluation applies them
 /// to real footage (`evaluate --gain-jitter/--contrast/--noise/--stuck-pixels/--jpeg`).
 struct ImageDegradation {
