@@ -718,6 +718,32 @@ TEST(CandidateRefinement, TranslationSigmaIsLooseOnlyForASmallBaseline) {
   EXPECT_GT(sigma_deg[1], 0.0);
 }
 
+// A covariance is symmetric by definition, and a fusion filter may test it; the inverse of a nearly
+// singular information matrix is symmetric only up to its rounding (13 inliers of a 2 cm baseline:
+// to seven digits).
+TEST(Refinement, FitCovariancesAreExactlySymmetric) {
+  const Matrix3d R = vg::rotationFromYawPitchRoll(0.5 * kDeg, 0.2 * kDeg, 0.1 * kDeg);
+  const double threshold = 0.1 * kDeg;
+  for (const int n : {13, 400}) {
+    for (const double baseline : {0.02, 1.0}) {
+      const Vector3d t = baseline * Vector3d(1.0, 0.1, 0.2).normalized();
+      const Scene s = makeScene(R, t, n, 0.5e-3, 0.0, 2, 10, 23);
+      vg::FrameMatches matches;
+      matches.assign(s.previous, s.current);
+      const vg::RefinedRotation general = vg::refineMotion(matches, R, t.normalized(), threshold, 10);
+      vg::VerifiedRotation start;
+      start.rotation = R;
+      const vg::RefinedRotation pure = vg::refineRotation(matches, start, threshold, 10);
+      for (const vg::RefinedRotation* fit : {&general, &pure}) {
+        ASSERT_TRUE(fit->covariance.allFinite());
+        EXPECT_TRUE(fit->covariance == fit->covariance.transpose())
+            << n << " matches, baseline " << baseline << (fit->pure_rotation ? ", pure" : ", general") << ":\n"
+            << fit->covariance;
+      }
+    }
+  }
+}
+
 // A translation along a body diagonal of the camera frame lies 35 deg from every axis and face
 // diagonal. Near structure with half the matches wrong, from a rotation a degree off, a start that
 // far converges to a wrong basin (3.6 deg off from the nine axes and face diagonals alone); the

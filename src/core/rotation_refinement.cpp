@@ -249,7 +249,10 @@ bool setFitCovariance(const Matrix& A, double cost, int dof, RefinedRotation* ou
   const Eigen::FullPivLU<Matrix> lu(A);
   if (!lu.isInvertible()) return false;
   const Matrix covariance = sigma2 * lu.inverse();
-  out->covariance = covariance.template topLeftCorner<3, 3>();
+  // The inverse of a nearly singular A is symmetric only up to its rounding, and a covariance
+  // must be symmetric exactly (a fusion filter may test it).
+  const Eigen::Matrix3d rotation = covariance.template topLeftCorner<3, 3>();
+  out->covariance = 0.5 * (rotation + rotation.transpose());
   if constexpr (Matrix::RowsAtCompileTime == Eigen::Dynamic || Matrix::RowsAtCompileTime >= 5) {
     if (A.rows() >= 5) {
       const Eigen::Matrix2d translation = covariance.template block<2, 2>(3, 3);
