@@ -35,6 +35,10 @@ estimator=("${REPO_DIR}"/src/voter/{cpu_voter,triple_batch}.cpp
   "${REPO_DIR}"/src/core/{vote_candidates,vote_covariance}.cpp)
 build fuzz_estimator -I"${REPO_DIR}/src/voter" -I"${REPO_DIR}/src/core" "${REPO_DIR}/test/fuzz/fuzz_estimator.cpp" \
   "${estimator[@]}" || failed=$((failed + 1))
+front_end=("${REPO_DIR}"/src/core/{visual_gyro,feature_front_end,fast_detector,brief_kernels,hamming_kernels}.cpp
+  "${REPO_DIR}"/src/core/{patch_alignment,fixed_point_gaussian,calibration_fit}.cpp)
+build fuzz_pipeline -I"${REPO_DIR}/src/voter" -I"${REPO_DIR}/src/core" "${REPO_DIR}/test/fuzz/fuzz_pipeline.cpp" \
+  "${front_end[@]}" "${estimator[@]}" "${core[@]}" -lopencv_features2d || failed=$((failed + 1))
 
 # Seeds: a valid mono8 image and CameraInfo; a valid KITTI and EuRoC folder's files.
 seed() {  # target, name, printf format...
@@ -61,8 +65,13 @@ for name, options in (("vote", 0x20), ("paper", 0x21), ("vote_prior_refined", 0x
     open(f"{sys.argv[1]}/{name}", "wb").write(data)
 PY
 seed fuzz_estimator raw '\x00\x10\x08\x00\x3f\x80\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00'
+# The pipeline: a 200 x 150 texture shifted between four frames at 30 Hz (each pair estimated),
+# the same with two settings changed, and a 40 x 40 image of raw bytes.
+seed fuzz_pipeline texture '\x01\xb8\x86\xc8\x00\x07\x04\x04\x00\x00\x05\x04\x00\x00\x06\x04\x00\x00\x07\x04\x00\x00'
+seed fuzz_pipeline texture_settings '\x01\xb8\x86\xc8\x02\x1e\x01\x00\x00\x40\x2d\x01\x00\x00\x40\x07\x04\x03\x00\x00\x05\x03\x00\x00\x06\x03\x00\x00\x07\x03\x00\x00'
+seed fuzz_pipeline raw '\x00\x18\x18\x28\x00\x07abcdefghijklmnopqrstuvwxyz0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ'
 
-for target in fuzz_to_gray fuzz_sequence fuzz_estimator; do
+for target in fuzz_to_gray fuzz_sequence fuzz_estimator fuzz_pipeline; do
   [[ -x ${out}/bin/${target} ]] || continue
   mkdir -p "${out}/${target}"
   echo "[fuzz] ${target} for ${seconds} s"

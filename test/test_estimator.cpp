@@ -843,6 +843,19 @@ TEST(CandidateRefinement, DescentRunsOnlyWhenTooFewAreExplainedAndEndsLower) {
   EXPECT_LT(vg::rotationAngleBetween(choice.winner.rotation, R), 0.05 * kDeg);
 }
 
+// The published covariance is symmetric exactly, also where weighted contenders' outer products
+// (w d) d^T, symmetric only up to rounding, are added to it.
+TEST(VoteCovariance, IsExactlySymmetricWithWeightedContenders) {
+  CovarianceFixture f;
+  std::vector<vg::RefinedRotation> contenders;
+  for (int k = 0; k < 8; ++k) {
+    const Vector3d d = Vector3d(0.3 + 0.11 * k, -0.7 + 0.05 * k, 0.13 * k - 0.2) * (0.1 + 0.07 * k) * kDeg;
+    contenders.push_back(refinedAt(vg::so3Exp(d), Vector3d::Zero(), 297 - k, 1.0));
+  }
+  const Matrix3d c = f.covariance(contenders);
+  EXPECT_TRUE(c == c.transpose()) << c;
+}
+
 TEST(VoteCovariance, ContendersWidenItAndTheFloorsHold) {
   CovarianceFixture f;
   const Matrix3d alone = f.covariance();

@@ -82,7 +82,9 @@ VoteCovariance voteCovariance(FrameMatches& matches, FrameMatches* refit_matches
   const double floor = rotationCovarianceFloor(input.refined_positions);
   covariance.diagonal().array() += floor * floor;
   for (int k = 0; k < 3; ++k) covariance(k, k) = std::max(covariance(k, k), input.min_variance);
-  return {covariance, scaled.inflation};
+  // Each term is symmetric, but a weighted outer product (w d) d^T is so only up to rounding; the
+  // published covariance is symmetric exactly (a fusion filter may test it).
+  return {0.5 * (covariance + covariance.transpose()), scaled.inflation};
 }
 
 // Where the matches leave the rotation weakly determined (few, noisy matches; a close scene's

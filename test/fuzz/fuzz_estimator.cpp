@@ -2,13 +2,9 @@
 // from the fuzzer: repeated, coincident, antipodal, coplanar or nearly parallel bearings, lists of
 // unequal length, non-unit and non-finite vectors. Bad input must give an invalid result with a
 // reason, never a crash, a hang or a sanitizer report; a valid result must be a finite proper
-// rotation with a finite, symmetric, positive semi-definite covariance.
-#include <cmath>
+// rotation with a finite, exactly symmetric, positive semi-definite covariance.
 #include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -16,30 +12,15 @@
 
 #include "visual_gyro/geometry.h"
 #include "visual_gyro/rotation_estimator.h"
+#include "fuzz_input.h"
 
 namespace vg = visual_gyro;
+using vg::fuzz::Bytes;
+using vg::fuzz::check;
+using vg::fuzz::checkCovariance;
+using vg::fuzz::checkRotation;
 
 namespace {
-
-// Reads the input front to back; past its end every read gives zero.
-class Bytes {
- public:
-  Bytes(const uint8_t* data, size_t size) : data_(data), size_(size) {}
-  uint8_t byte() { return at_ < size_ ? data_[at_++] : 0; }
-  float number() {
-    uint8_t raw[sizeof(float)] = {};
-    for (uint8_t& b : raw) b = byte();
-    float value;
-    std::memcpy(&value, raw, sizeof(value));
-    return value;
-  }
-  bool done() const { return at_ >= size_; }
-
- private:
-  const uint8_t* data_;
-  size_t size_;
-  size_t at_ = 0;
-};
 
 // A bearing from the input: raw, or normalised so that most inputs pass the estimator's checks and
 // reach the voting, the refinement and the covariance; a third of them copy an earlier bearing
@@ -52,24 +33,14 @@ Eigen::Vector3d bearing(Bytes& in, bool normalise, const std::vector<Eigen::Vect
   return b;
 }
 
-// Aborts (the fuzzer then keeps the input) with what failed.
-void check(bool ok, const char* what) {
-  if (ok) return;
-  std::fprintf(stderr, "fuzz_estimator: %s\n", what);
-  std::abort();
-}
-
 void checkResult(const vg::RotationResult& r) {
   if (!r.valid()) {
     check(!r.reason.empty(), "an invalid result without a reason");
     return;
   }
-  check(r.rotation.allFinite() && r.covariance.allFinite() && r.rotation_vector.allFinite(), "a valid result with a non-finite rotation or covariance");
-  check((r.rotation.transpose() * r.rotation - Eigen::Matrix3d::Identity()).norm() < 1e-6, "a valid rotation that is not orthonormal");
-  check(r.rotation.determinant() > 0.0, "a valid rotation that is a reflection");
-  check((r.covariance - r.covariance.transpose()).norm() <= 1e-9 * (1.0 + r.covariance.norm()), "an asymmetric covariance");
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(0.5 * (r.covariance + r.covariance.transpose()));
-  check(eigen.eigenvalues().minCoeff() >= -1e-12 * (1.0 + eigen.eigenvalues().maxCoeff()), "a covariance that is not positive semi-definite");
+  checkRotation(r.rotation);
+  check(r.rotation_vector.allFinite(), "a non-finite rotation vector");
+  checkCovariance(r.covariance);
 }
 
 }  // namespace
@@ -101,9 +72,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     for (size_t i = 0; i < matches && !in.done(); ++i) {
       previous.push_back(bearing(in, normalise, previous));
       if (structured) {
-        const uint8_t shift = in.byte();
-        const Eigen::Vector3d moved = turn.transpose() * previous.back() +
-                                      (shift < 160 ? 1e-4 : 2e-2) * Eigen::Vector3d(in.byte() - 128.0, in.byte() - 128.0, 0.0) / 128.0;
+        const double reach = in.byte() < 160 ? 1e-4 : 2e-2;  // noise, or a wrong match
+        const Eigen::Vector3d offset(in.byte() - 128.0, in.byte() - 128.0, 0.0);
+        const Eigen::Vector3d moved = turn.transpose() * previous.back() + reach * offset / 128.0;
         current.push_back(normalise && moved.allFinite() && moved.norm() > 1e-30 ? moved.normalized() : moved);
       } else {
         current.push_back(bearing(in, normalise, current));
