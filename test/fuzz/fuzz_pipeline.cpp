@@ -24,10 +24,7 @@
 #include "fuzz_input.h"
 
 namespace vg = visual_gyro;
-using vg::fuzz::Bytes;
-using vg::fuzz::check;
-using vg::fuzz::checkCovariance;
-using vg::fuzz::checkRotation;
+using namespace vg::fuzz;  // the targets' input reader and checks
 
 namespace {
 
