@@ -137,6 +137,13 @@ done
 # The same room at the noise of a dim real camera (6 grey levels on a 30-level scene, before the
 # JPEG): a pair's matches lie about a pixel from where the motion puts them.
 render dim_hand_rs_noise6 "${dim_hand_rs_options[@]}" --noise 6
+# The same room at 4 grey levels of noise, over the four textures: some 200 matches a pair, few and
+# noisy enough that a general motion's rotation spreads further than a pure rotation's translation
+# bias, as hand-held footage of a dim real room showed.
+render dim_hand_rs_noise4 "${dim_hand_rs_options[@]}" --noise 4
+for texture in "${TEXTURE_SEEDS[@]}"; do
+  render "dim_hand_rs_noise4_texture${texture}" "${dim_hand_rs_options[@]}" --noise 4 --seed "${texture}"
+done
 # The same room lit three times brighter (90 grey levels) at that noise: some 600 matches a pair,
 # as many as a hand-held 1280 x 720 camera gives in a dim real room, so that the general motion
 # rests on hundreds of noisy matches rather than a few dozen.
@@ -222,6 +229,12 @@ for texture in "${TEXTURE_SEEDS[@]}"; do
 done
 run_case dim_hand_rs_noise6 "${OUT}/rendered/dim_hand_rs_noise6" \
   "rendered dim_hand_rs with three times its pixel noise (6 grey levels before the JPEG), as a dim real camera gives"
+run_case dim_hand_rs_noise4 "${OUT}/rendered/dim_hand_rs_noise4" \
+  "rendered dim_hand_rs with twice its pixel noise (4 grey levels before the JPEG): some 200 matches a pair"
+for texture in "${TEXTURE_SEEDS[@]}"; do
+  run_case "dim_hand_rs_noise4_texture${texture}" "${OUT}/rendered/dim_hand_rs_noise4_texture${texture}" \
+    "rendered dim_hand_rs_noise4's motion through the room of renderer seed ${texture}"
+done
 run_case hand_rs_720p_noise6 "${OUT}/rendered/hand_rs_720p_noise6" \
   "rendered dim_hand_rs_noise6 lit three times brighter (90 grey levels): some 600 matches a pair, noisy"
 
